@@ -7,6 +7,7 @@ namespace py = pybind11;
 namespace linnet::python {
 void bindSystem(py::module_& m);  // bind_system.cc: Config, System, dataset runs
 void bindSim(py::module_& m);     // bind_sim.cc: simulator renderer
+void bindLines(py::module_& m);   // bind_lines.cc: line front-end
 }  // namespace linnet::python
 
 PYBIND11_MODULE(_linnet, m) {
@@ -14,4 +15,5 @@ PYBIND11_MODULE(_linnet, m) {
   m.attr("__version__") = "0.1.0";
   linnet::python::bindSystem(m);
   linnet::python::bindSim(m);
+  linnet::python::bindLines(m);
 }
