@@ -48,6 +48,8 @@ fi
 
 # Build the C++ library, its tests and the Python module (one CMake build in build/, incremental).
 echo "[setup] building (Release)"
+# ccache keyed on paths relative to the checkout, so a fresh clone elsewhere reuses the cache.
+export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1
 export CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_PARALLEL_LEVEL:-$(nproc)}
 $VPY -m pip install -q --no-build-isolation --no-deps -e . \
   -Ccmake.define.LINNET_BUILD_TESTS=ON -Cbuild-dir=build

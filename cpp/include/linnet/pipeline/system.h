@@ -1,0 +1,82 @@
+// System: the public C++ API of Linnet (DESIGN A2).
+//
+//   linnet::System sys(linnet::Config::eurocStereoImu());
+//   sys.setCallback([](const linnet::FrameResult& r) { ... });
+//   sys.addImu(t, acc, gyr); ...; sys.addStereo(t, left, right); ...
+//   sys.finish();
+//   for (const auto& r : sys.trajectory()) ...
+//
+// Stages: front-end (point worker + line worker, in parallel) -> estimator, joined by bounded queues with an
+// end-of-stream marker. In blocking mode nothing is dropped and a run is deterministic; in real-time mode a frame
+// that finds the front-end queue full is dropped (addStereo returns false).
+// Threading: add* may be called from any one producer thread; the callback runs on the estimator thread.
+#pragma once
+
+#include <atomic>
+#include <exception>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "linnet/estimator/estimator.h"
+#include "linnet/pipeline/config.h"
+
+namespace linnet {
+
+/// Everything the System reports for one processed frame.
+struct FrameResult {
+  EstimatorOutput estimate;
+  int tracked_points = 0;  // points delivered by the front-end
+  int stereo_points = 0;   // of which matched in the right image
+  int tracked_lines = 0;   // lines delivered by the front-end
+  double point_ms = 0.0;     // point worker
+  double line_ms = 0.0;      // line worker
+  double frontend_ms = 0.0;  // front-end wall time (max of the two workers when parallel)
+  double backend_ms = 0.0;   // estimator wall time
+};
+
+class System {
+ public:
+  /// Validates the config (ConfigError naming the key) and starts the worker threads.
+  explicit System(const Config& config);
+  ~System();
+  System(const System&) = delete;
+  System& operator=(const System&) = delete;
+
+  /// An IMU sample (body frame, SI). Time stamps must increase strictly (UsageError otherwise). Never blocks.
+  void addImu(Timestamp t, const Vec3& acc, const Vec3& gyr);
+  /// A stereo pair (8-bit gray, or BGR converted to gray), of the calibrated size. Returns false if dropped
+  /// (real-time mode only). Throws UsageError on a wrong size / type / non-increasing time stamp, and rethrows any
+  /// error raised by a worker thread.
+  bool addStereo(Timestamp t, const cv::Mat& left, const cv::Mat& right);
+  /// A monocular image (config.stereo must be false).
+  bool addMono(Timestamp t, const cv::Mat& image);
+
+  /// Called once per processed frame, in time order, on the estimator thread. Set before adding data.
+  void setCallback(std::function<void(const FrameResult&)> callback);
+
+  /// End of stream: processes everything queued, then stops the threads. Idempotent. Rethrows worker errors.
+  void finish();
+
+  /// Results of every processed frame so far, in time order.
+  std::vector<FrameResult> trajectory() const;
+  /// Landmarks of the current window, in W.
+  std::vector<Vec3> map() const;
+  /// Frames dropped in real-time mode (or frames the IMU never covered).
+  int droppedFrames() const { return dropped_.load(); }
+  const Config& config() const { return config_; }
+
+ private:
+  struct Impl;
+  bool addFrame(Timestamp t, const cv::Mat& left, const cv::Mat& right);
+  void rethrowWorkerError();
+
+  Config config_;
+  std::unique_ptr<Impl> impl_;
+  std::atomic<int> dropped_{0};
+};
+
+}  // namespace linnet

@@ -1,0 +1,337 @@
+#include "linnet/pipeline/system.h"
+
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <opencv2/imgproc.hpp>
+
+#include "linnet/core/error.h"
+#include "linnet/features/line_tracker.h"
+#include "linnet/features/point_tracker.h"
+#include "linnet/pipeline/bounded_queue.h"
+#include "linnet/pipeline/worker_thread.h"
+
+namespace linnet {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+struct FrameInput {
+  Timestamp t = 0;
+  cv::Mat left, right;
+};
+
+struct ObservationItem {
+  FrameObservations obs;
+  double frontend_ms = 0.0;
+};
+
+}  // namespace
+
+struct System::Impl {
+  explicit Impl(const Config& c)
+      : config(c),
+        cam0(CameraModel::create(c.cam0)),
+        cam1(c.stereo ? CameraModel::create(c.cam1) : nullptr),
+        T_C1_C0(c.cam1.T_B_C.inverse() * c.cam0.T_B_C),
+        points(c.points, *cam0, cam1.get(), T_C1_C0),
+        lines(c.lines, *cam0, cam1.get(), T_C1_C0),
+        estimator(c.estimator, c.imu, c.cam0.T_B_C,
+                  c.stereo ? std::optional<Pose>(c.cam1.T_B_C) : std::optional<Pose>()),
+        frames(static_cast<std::size_t>(c.pipeline.frame_queue_capacity)),
+        observations(static_cast<std::size_t>(c.pipeline.observation_queue_capacity)) {}
+
+  Config config;
+  std::unique_ptr<CameraModel> cam0, cam1;
+  Pose T_C1_C0;
+  PointTracker points;
+  LineTracker lines;
+  Estimator estimator;
+
+  BoundedQueue<FrameInput> frames;
+  BoundedQueue<ObservationItem> observations;
+
+  // IMU hand-over to the estimator thread.
+  std::mutex imu_mutex;
+  std::condition_variable imu_cv;
+  std::deque<ImuSample> imu_pending;
+  Timestamp last_imu_t = std::numeric_limits<Timestamp>::min();
+  bool imu_closed = false;
+  bool estimator_starved = false;  // the estimator waits for IMU past the newest sample
+
+  // Results.
+  mutable std::mutex result_mutex;
+  std::vector<FrameResult> results;
+  std::function<void(const FrameResult&)> callback;
+
+  // First error raised in a worker thread.
+  std::mutex error_mutex;
+  std::exception_ptr error;
+
+  Timestamp last_frame_t = std::numeric_limits<Timestamp>::min();
+  bool finished = false;
+
+  std::unique_ptr<WorkerThread> line_worker;
+  std::jthread frontend_thread, estimator_thread;
+
+  void fail(std::exception_ptr e) {
+    {
+      std::lock_guard<std::mutex> lock(error_mutex);
+      if (!error) error = e;
+    }
+    frames.close();
+    observations.close();
+    {
+      std::lock_guard<std::mutex> lock(imu_mutex);
+      imu_closed = true;
+    }
+    imu_cv.notify_all();
+  }
+
+  void frontendLoop() {
+    try {
+      while (std::optional<FrameInput> in = frames.pop()) {
+        ObservationItem item;
+        item.obs.t = in->t;
+        item.obs.stereo = config.stereo;
+        const auto t0 = Clock::now();
+        if (config.pipeline.use_lines && line_worker) {
+          line_worker->submit([&] {
+            const auto tl = Clock::now();
+            lines.track(in->t, in->left, in->right, &item.obs.lines);
+            item.obs.line_ms = msSince(tl);
+          });
+        }
+        const auto tp = Clock::now();
+        points.track(in->t, in->left, in->right, &item.obs.points);
+        item.obs.point_ms = msSince(tp);
+        if (config.pipeline.use_lines) {
+          if (line_worker) {
+            line_worker->wait();
+          } else {
+            const auto tl = Clock::now();
+            lines.track(in->t, in->left, in->right, &item.obs.lines);
+            item.obs.line_ms = msSince(tl);
+          }
+        }
+        item.frontend_ms = msSince(t0);
+        if (!observations.push(std::move(item))) break;
+      }
+    } catch (...) {
+      fail(std::current_exception());
+    }
+    observations.close();
+  }
+
+  // Moves to the estimator every IMU sample up to and including the first one at or after t.
+  // Returns false if the IMU stream ended before covering t.
+  bool feedImuUpTo(Timestamp t) {
+    std::vector<ImuSample> batch;
+    bool covered = false;
+    {
+      std::unique_lock<std::mutex> lock(imu_mutex);
+      estimator_starved = last_imu_t < t;
+      imu_cv.notify_all();
+      imu_cv.wait(lock, [&] { return imu_closed || last_imu_t >= t; });
+      estimator_starved = false;
+      covered = last_imu_t >= t;
+      while (!imu_pending.empty()) {
+        const bool last = imu_pending.front().t >= t;
+        batch.push_back(imu_pending.front());
+        imu_pending.pop_front();
+        if (last) break;
+      }
+    }
+    for (const ImuSample& s : batch) estimator.addImu(s);
+    return covered;
+  }
+
+  void estimatorLoop(std::atomic<int>* dropped) {
+    try {
+      while (std::optional<ObservationItem> item = observations.pop()) {
+        if (!feedImuUpTo(item->obs.t)) {
+          dropped->fetch_add(1);
+          continue;
+        }
+        FrameResult r;
+        const auto t0 = Clock::now();
+        r.estimate = estimator.addFrame(item->obs);
+        r.backend_ms = msSince(t0);
+        r.frontend_ms = item->frontend_ms;
+        r.point_ms = item->obs.point_ms;
+        r.line_ms = item->obs.line_ms;
+        r.tracked_points = static_cast<int>(item->obs.points.size());
+        for (const PointObservation& p : item->obs.points) r.stereo_points += p.has_right ? 1 : 0;
+        r.tracked_lines = static_cast<int>(item->obs.lines.size());
+        std::function<void(const FrameResult&)> cb;
+        {
+          std::lock_guard<std::mutex> lock(result_mutex);
+          results.push_back(r);
+          cb = callback;
+        }
+        if (cb) cb(r);
+      }
+    } catch (...) {
+      fail(std::current_exception());
+    }
+  }
+};
+
+System::System(const Config& config) : config_(config) {
+  config_.validate();
+  impl_ = std::make_unique<Impl>(config_);
+  if (config_.pipeline.use_lines && config_.pipeline.parallel_frontend)
+    impl_->line_worker = std::make_unique<WorkerThread>();
+  impl_->estimator_thread = std::jthread([this] { impl_->estimatorLoop(&dropped_); });
+  impl_->frontend_thread = std::jthread([this] { impl_->frontendLoop(); });
+}
+
+System::~System() {
+  try {
+    finish();
+  } catch (...) {
+    // Errors are reported by an explicit finish(); a destructor must not throw.
+  }
+}
+
+void System::rethrowWorkerError() {
+  std::exception_ptr e;
+  {
+    std::lock_guard<std::mutex> lock(impl_->error_mutex);
+    e = impl_->error;
+  }
+  if (e) std::rethrow_exception(e);
+}
+
+void System::addImu(Timestamp t, const Vec3& acc, const Vec3& gyr) {
+  rethrowWorkerError();
+  if (!acc.allFinite() || !gyr.allFinite())
+    throw UsageError("addImu: non-finite IMU sample at t = " + std::to_string(t) + " ns");
+  {
+    std::lock_guard<std::mutex> lock(impl_->imu_mutex);
+    if (impl_->imu_closed) throw UsageError("addImu after finish()");
+    if (t <= impl_->last_imu_t)
+      throw UsageError("addImu: time stamps must increase strictly (got " + std::to_string(t) + " ns after " +
+                       std::to_string(impl_->last_imu_t) + " ns)");
+    impl_->imu_pending.push_back(ImuSample{t, acc, gyr});
+    impl_->last_imu_t = t;
+  }
+  impl_->imu_cv.notify_all();
+}
+
+bool System::addStereo(Timestamp t, const cv::Mat& left, const cv::Mat& right) {
+  if (!config_.stereo) throw UsageError("addStereo on a monocular System (config.stereo = false); use addMono");
+  return addFrame(t, left, right);
+}
+
+bool System::addMono(Timestamp t, const cv::Mat& image) {
+  if (config_.stereo) throw UsageError("addMono on a stereo System (config.stereo = true); use addStereo");
+  return addFrame(t, image, cv::Mat());
+}
+
+namespace {
+
+cv::Mat toGray(const cv::Mat& image, const CameraCalibration& calib, const char* which) {
+  if (image.empty()) throw UsageError(std::string(which) + " image is empty");
+  if (image.cols != calib.width || image.rows != calib.height)
+    throw UsageError(std::string(which) + " image is " + std::to_string(image.cols) + "x" +
+                     std::to_string(image.rows) + ", the calibration says " + std::to_string(calib.width) + "x" +
+                     std::to_string(calib.height));
+  if (image.depth() != CV_8U) throw UsageError(std::string(which) + " image must be 8-bit");
+  if (image.channels() == 1) return image;
+  cv::Mat gray;
+  if (image.channels() == 3)
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4)
+    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  else
+    throw UsageError(std::string(which) + " image has " + std::to_string(image.channels()) + " channels");
+  return gray;
+}
+
+}  // namespace
+
+bool System::addFrame(Timestamp t, const cv::Mat& left, const cv::Mat& right) {
+  rethrowWorkerError();
+  if (impl_->finished) throw UsageError("add image after finish()");
+  if (t <= impl_->last_frame_t)
+    throw UsageError("image time stamps must increase strictly (got " + std::to_string(t) + " ns after " +
+                     std::to_string(impl_->last_frame_t) + " ns)");
+  FrameInput in;
+  in.t = t;
+  in.left = toGray(left, config_.cam0, "left");
+  if (config_.stereo) in.right = toGray(right, config_.cam1, "right");
+  // The front-end may run after this call returns: it must own its pixels.
+  if (in.left.data == left.data) in.left = left.clone();
+  if (config_.stereo && in.right.data == right.data) in.right = right.clone();
+  impl_->last_frame_t = t;
+
+  if (!config_.pipeline.blocking) {
+    if (!impl_->frames.tryPush(std::move(in))) {
+      dropped_.fetch_add(1);
+      return false;
+    }
+    return true;
+  }
+  while (true) {
+    using Result = BoundedQueue<FrameInput>::PushResult;
+    const Result r = impl_->frames.pushFor(in, std::chrono::milliseconds(200));
+    if (r == Result::kPushed) return true;
+    if (r == Result::kClosed) {
+      rethrowWorkerError();
+      throw UsageError("System is stopped");
+    }
+    // Waiting longer cannot help if the estimator needs IMU data that only this thread can add.
+    std::lock_guard<std::mutex> lock(impl_->imu_mutex);
+    if (impl_->estimator_starved && impl_->observations.size() >= impl_->observations.capacity())
+      throw UsageError(
+          "blocking mode: the estimator waits for IMU samples up to the queued frames' time stamps; add IMU data "
+          "(addImu) up to each frame's time before adding more frames");
+  }
+}
+
+void System::setCallback(std::function<void(const FrameResult&)> callback) {
+  std::lock_guard<std::mutex> lock(impl_->result_mutex);
+  impl_->callback = std::move(callback);
+}
+
+void System::finish() {
+  if (!impl_ || impl_->finished) {
+    if (impl_) rethrowWorkerError();
+    return;
+  }
+  impl_->finished = true;
+  // End of every input stream: no more IMU either, so a frame the IMU never covered is dropped, not waited for.
+  {
+    std::lock_guard<std::mutex> lock(impl_->imu_mutex);
+    impl_->imu_closed = true;
+  }
+  impl_->imu_cv.notify_all();
+  impl_->frames.close();
+  if (impl_->frontend_thread.joinable()) impl_->frontend_thread.join();
+  if (impl_->estimator_thread.joinable()) impl_->estimator_thread.join();
+  impl_->line_worker.reset();
+  rethrowWorkerError();
+}
+
+std::vector<FrameResult> System::trajectory() const {
+  std::lock_guard<std::mutex> lock(impl_->result_mutex);
+  return impl_->results;
+}
+
+std::vector<Vec3> System::map() const {
+  // The estimator is only touched from its own thread while running; read it once the stream has finished.
+  if (!impl_->finished) return {};
+  return impl_->estimator.landmarkPositions();
+}
+
+}  // namespace linnet
