@@ -1,0 +1,167 @@
+// The shared Jacobian checker must pass correct Jacobians and FAIL on wrong ones (DESIGN A5).
+#include <cmath>
+#include <random>
+
+#include <ceres/sized_cost_function.h>
+#include <gtest/gtest.h>
+
+#include "linnet/estimator/manifolds.h"
+#include "support/jacobian_check.h"
+
+namespace linnet {
+namespace {
+
+using testing::checkJacobians;
+using testing::jacobiansMatch;
+
+// Ways to get a Jacobian wrong, injected into an otherwise correct factor.
+enum class Bug {
+  kNone,
+  kOneEntry,          // one ambient entry off by 10%
+  kOneColumn,         // a whole tangent column zeroed
+  kRotationSign,      // d r / d dtheta with the wrong sign
+  kLeftPerturbation,  // Jacobian derived for q <- Exp(dtheta) q instead of q <- q Exp(dtheta)
+  kSkipsResidual,     // a residual change when Jacobians are requested
+  kUnwritten,         // leaves one Jacobian entry untouched
+};
+
+// Test factor with a pose block (7) and a landmark block (3): r = [R^T (l - p); 2 vec(q_ref^-1 q)].
+class PoseLandmarkFactor : public ceres::SizedCostFunction<6, 7, 3> {
+ public:
+  PoseLandmarkFactor(const Quat& q_ref, Bug bug) : q_ref_(q_ref), bug_(bug) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    const Vec3 p = posePosition(parameters[0]);
+    const Quat q = poseRotation(parameters[0]);
+    const Eigen::Map<const Vec3> l(parameters[1]);
+    const Mat3 Rt = q.toRotationMatrix().transpose();
+    const Vec3 pb = Rt * (l - p);
+    const Quat e = q_ref_.conjugate() * q;
+    Eigen::Map<Vec6> r(residuals);
+    r.head<3>() = pb;
+    r.tail<3>() = 2.0 * e.vec();
+    if (bug_ == Bug::kSkipsResidual && jacobians != nullptr) r[0] += 1e-3;
+    if (jacobians == nullptr) return true;
+    if (jacobians[0] != nullptr) {
+      Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
+      J.block<3, 3>(0, 0) = -Rt;
+      J.block<3, 3>(0, 3) = skew(pb);
+      // 2 vec(e Exp(dtheta)) ~= 2 vec(e) + (e.w I + [e.vec]x) dtheta
+      J.block<3, 3>(3, 3) = e.w() * Mat3::Identity() + skew(e.vec());
+      if (bug_ == Bug::kRotationSign) J.block<3, 3>(0, 3) *= -1.0;
+      if (bug_ == Bug::kLeftPerturbation) J.block<3, 3>(0, 3) = Rt * skew(l - p);
+      if (bug_ == Bug::kOneColumn) J.col(4).setZero();
+      tangentToAmbientPose<6>(J, parameters[0], jacobians[0]);
+      if (bug_ == Bug::kOneEntry) jacobians[0][2 * 7 + 1] *= 1.1;
+    }
+    if (jacobians[1] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 6, 3, Eigen::RowMajor>> Jl(jacobians[1]);
+      Jl.setZero();
+      Jl.topRows<3>() = Rt;
+      if (bug_ == Bug::kUnwritten) jacobians[1][5] = std::nan("");
+    }
+    return true;
+  }
+
+ private:
+  Quat q_ref_;
+  Bug bug_;
+};
+
+struct Fixture {
+  double pose[7];
+  double landmark[3] = {1.5, -2.0, 4.0};
+  Quat q_ref;
+  explicit Fixture(unsigned seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> n(0.0, 1.0);
+    const Quat q = Quat(n(rng), n(rng), n(rng), n(rng)).normalized();
+    setPose(Pose(q, Vec3(n(rng), n(rng), n(rng))), pose);
+    q_ref = q * expSO3(Vec3(0.3 * n(rng), 0.3 * n(rng), 0.3 * n(rng)));
+  }
+};
+
+TEST(JacobianChecker, PassesCorrectJacobians) {
+  const PoseManifold pm;
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    Fixture fx(seed);
+    const PoseLandmarkFactor f(fx.q_ref, Bug::kNone);
+    const auto res = checkJacobians(f, {fx.pose, fx.landmark}, {&pm, nullptr});
+    EXPECT_TRUE(res.ok(1e-7)) << res.describe(1e-7, true);
+    EXPECT_TRUE(res.residuals_consistent);
+    ASSERT_EQ(res.blocks.size(), 2u);
+    EXPECT_EQ(res.blocks[0].tangent_size, 6);
+    EXPECT_EQ(res.blocks[1].tangent_size, 3);
+    EXPECT_LT(res.maxAbsError(), 1e-7);
+    EXPECT_TRUE(jacobiansMatch(f, {fx.pose, fx.landmark}, {&pm, nullptr}, 1e-7));
+  }
+}
+
+TEST(JacobianChecker, LeavesParametersUntouched) {
+  const PoseManifold pm;
+  Fixture fx(3);
+  double copy[7];
+  std::copy(fx.pose, fx.pose + 7, copy);
+  const PoseLandmarkFactor f(fx.q_ref, Bug::kNone);
+  (void)checkJacobians(f, {fx.pose, fx.landmark}, {&pm, nullptr});
+  for (int i = 0; i < 7; ++i) EXPECT_EQ(copy[i], fx.pose[i]);
+}
+
+TEST(JacobianChecker, FailsOnEveryInjectedBug) {
+  const PoseManifold pm;
+  Fixture fx(11);
+  for (Bug bug : {Bug::kOneEntry, Bug::kOneColumn, Bug::kRotationSign, Bug::kLeftPerturbation, Bug::kSkipsResidual,
+                  Bug::kUnwritten}) {
+    const PoseLandmarkFactor f(fx.q_ref, bug);
+    const auto res = checkJacobians(f, {fx.pose, fx.landmark}, {&pm, nullptr});
+    EXPECT_FALSE(res.ok(1e-4)) << "bug " << static_cast<int>(bug) << " not detected:\n" << res.describe();
+    EXPECT_FALSE(jacobiansMatch(f, {fx.pose, fx.landmark}, {&pm, nullptr}, 1e-4));
+  }
+}
+
+TEST(JacobianChecker, LocatesTheWrongBlockAndEntry) {
+  const PoseManifold pm;
+  Fixture fx(5);
+  {
+    const PoseLandmarkFactor f(fx.q_ref, Bug::kOneColumn);
+    const auto res = checkJacobians(f, {fx.pose, fx.landmark}, {&pm, nullptr});
+    ASSERT_EQ(res.blocks.size(), 2u);
+    EXPECT_GT(res.blocks[0].max_rel_error, 1e-3);
+    EXPECT_EQ(res.blocks[0].worst_col, 4);
+    EXPECT_LT(res.blocks[1].max_rel_error, 1e-7);
+  }
+  {
+    const PoseLandmarkFactor f(fx.q_ref, Bug::kUnwritten);
+    const auto res = checkJacobians(f, {fx.pose, fx.landmark}, {&pm, nullptr});
+    EXPECT_TRUE(res.blocks[0].finite);
+    EXPECT_FALSE(res.blocks[1].finite);
+    EXPECT_NE(res.describe().find("NON-FINITE"), std::string::npos);
+  }
+  {
+    const PoseLandmarkFactor f(fx.q_ref, Bug::kSkipsResidual);
+    const auto res = checkJacobians(f, {fx.pose, fx.landmark}, {&pm, nullptr});
+    EXPECT_FALSE(res.residuals_consistent);
+    EXPECT_FALSE(res.problem.empty());
+  }
+}
+
+TEST(JacobianChecker, AmbientPoseJacobianIsAlsoTheEuclideanDerivative) {
+  // tangentToAmbientPose() yields a Jacobian with no component along q itself, which is exactly the Euclidean
+  // derivative of a residual that normalises q (as poseRotation() does). So the check passes even through the
+  // Euclidean "manifold"; with a wrong rotation Jacobian it must still fail.
+  Fixture fx(9);
+  EXPECT_TRUE(checkJacobians(PoseLandmarkFactor(fx.q_ref, Bug::kNone), {fx.pose, fx.landmark}, {}).ok(1e-7));
+  EXPECT_FALSE(checkJacobians(PoseLandmarkFactor(fx.q_ref, Bug::kRotationSign), {fx.pose, fx.landmark}, {}).ok(1e-4));
+}
+
+TEST(JacobianChecker, ReportsStructuralMisuse) {
+  Fixture fx(2);
+  const PoseLandmarkFactor f(fx.q_ref, Bug::kNone);
+  const PoseManifold pm;
+  EXPECT_FALSE(checkJacobians(f, {fx.pose}, {}).ok(1.0));
+  EXPECT_FALSE(checkJacobians(f, {fx.pose, fx.landmark}, {&pm}).ok(1.0));
+  EXPECT_FALSE(checkJacobians(f, {fx.pose, fx.landmark}, {nullptr, &pm}).ok(1.0));  // ambient 7 on a 3-block
+}
+
+}  // namespace
+}  // namespace linnet
