@@ -54,7 +54,10 @@ def _overrides_yaml(overrides) -> str:
 
 def _run_with_progress(linnet, dataset, cfg, max_frames, start, quiet):
     if quiet:
-        return linnet._linnet.run_euroc(str(dataset), cfg, max_frames, start, None)
+        try:
+            return linnet._linnet.run_euroc(str(dataset), cfg, max_frames, start, None)
+        except linnet.Error as e:
+            raise click.ClickException(str(e))
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("[bold]linnet run[/bold]"), BarColumn(), MofNCompleteColumn(),

@@ -1,0 +1,52 @@
+"""CLI smoke tests: help texts, one-line usage errors with exit code 2."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+LINNET = [sys.executable, "-m", "linnet.cli"]
+
+
+def _run(*args, cwd=None):
+    return subprocess.run(LINNET + list(args), capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+@pytest.mark.parametrize("args", [["--help"], ["run", "--help"], ["config", "--help"], ["demo", "--help"],
+                                  ["bench", "--help"], ["bench", "stages", "--help"]])
+def test_help(args):
+    r = _run(*args)
+    assert r.returncode == 0, r.stderr
+    assert "Usage:" in r.stdout
+
+
+@pytest.mark.parametrize("args", [["bogus"], ["run"], ["run", "/no/such/dataset"], ["run", ".", "--max-frames", "x"],
+                                  ["--no-such-option"]])
+def test_bad_arguments_give_one_line_and_exit_code_2(args):
+    r = _run(*args)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = [line for line in r.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, r.stderr
+    assert lines[0].startswith("linnet")
+
+
+def test_config_prints_every_section():
+    r = _run("config")
+    assert r.returncode == 0, r.stderr
+    for section in ("cam0:", "cam1:", "imu:", "points:", "lines:", "estimator:", "pipeline:"):
+        assert section in r.stdout
+
+
+def test_run_on_a_folder_that_is_not_euroc_fails_cleanly(tmp_path):
+    r = _run("run", str(tmp_path), "--out", str(tmp_path / "out"))
+    assert r.returncode != 0
+    assert "Traceback" not in r.stderr
+    assert "mav0" in r.stderr or str(tmp_path) in r.stderr
+
+
+def test_shipped_config_loads():
+    import linnet
+
+    shipped = Path(__file__).resolve().parents[2] / "config" / "euroc_stereo_imu.yaml"
+    cfg = linnet.Config.load(str(shipped))
+    assert cfg.stereo
