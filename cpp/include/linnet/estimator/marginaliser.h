@@ -1,0 +1,97 @@
+// Schur-complement marginalisation (DESIGN B1): linearise the residuals that touch the blocks to drop, eliminate
+// those blocks from H dx = -g, and return the result as a square-root prior (MarginalizationPrior) on the blocks they
+// were connected to.
+//
+// Usage (one Marginaliser per marginalisation step):
+//   Marginaliser m;
+//   m.addParameterBlock(key, values, ambient_size, manifold_or_nullptr);   // for every block a residual touches
+//   m.addResidual(cost, loss, {key_a, key_b, ...});                          // every residual touching a dropped block
+//   auto prior = m.marginalise({keys to drop});                              // -> PriorFactor(prior) in the next window
+// A previous prior is re-marginalised by adding std::make_shared<PriorFactor>(old_prior) with keys old_prior->keys.
+//
+// Robust losses: each residual is corrected as Ceres' own trust-region solver does (Triggs et al., "Bundle
+// adjustment - a modern synthesis", 2000, sec. 4.3): r' = sqrt(rho')/(1 - a) r, J' = sqrt(rho') (I - a r r^T/|r|^2) J
+// with a = 1 - sqrt(1 + 2 |r|^2 rho''/rho'); when rho'' <= 0 (Huber, Cauchy, ...) this is the plain sqrt(rho')
+// scaling of residual and Jacobian that VINS-Mono uses. So H and g match what the solver saw at its last step.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <vector>
+
+#include <ceres/cost_function.h>
+#include <ceres/loss_function.h>
+#include <ceres/manifold.h>
+
+#include "linnet/estimator/factors/prior_factor.h"
+
+namespace linnet {
+
+struct MarginaliserOptions {
+  double eigenvalue_threshold = 1e-8;  // eigenvalues of H_mm and of the Schur complement below this are treated as 0
+                                       // (pseudo-inverse; the prior keeps only directions above it). Units: information
+                                       // (1 / tangent unit^2).
+
+  template <class V>
+  void visit(V& v) {
+    v("eigenvalue_threshold", eigenvalue_threshold, "eigenvalues below this count as zero", 0.0, 1e3);
+  }
+};
+
+/// Statistics of the last marginalise() call, for logs and tests.
+struct MarginalisationStats {
+  int residuals_used = 0;       // residuals touching a dropped block
+  int dropped_size = 0;         // tangent dimension eliminated
+  int kept_size = 0;            // tangent dimension of the prior's blocks
+  int prior_rank = 0;           // rows of the prior's J
+  int dropped_rank_deficiency = 0;  // eigenvalues of H_mm below the threshold
+};
+
+class Marginaliser {
+ public:
+  explicit Marginaliser(MarginaliserOptions options = {});
+
+  /// Registers a parameter block. `values` (ambient_size doubles) is COPIED now: the linearisation point is the
+  /// value at registration. `manifold` (nullptr = Euclidean) is not owned and must outlive the returned prior.
+  /// Throws UsageError on a duplicate key or inconsistent sizes.
+  void addParameterBlock(BlockKey key, const double* values, int ambient_size, const ceres::Manifold* manifold);
+
+  /// Declares a block as held constant: its columns are not estimated, it never enters a prior.
+  void setParameterBlockConstant(BlockKey key);
+
+  /// Adds a residual over registered blocks (in the cost function's parameter order). `loss` (may be nullptr) is not
+  /// owned and must stay alive until marginalise() returns. Throws UsageError on an unknown key or a size mismatch.
+  void addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss, std::vector<BlockKey> keys);
+
+  /// Linearises every residual that touches a block of `drop` at the registered values, eliminates `drop` and returns
+  /// the prior over every other non-constant block those residuals touch (in registration order). Returns nullptr if
+  /// no residual touches a dropped block or the prior would have rank 0. Throws UsageError for an unregistered key,
+  /// InputError if a cost function fails to evaluate or returns non-finite values.
+  std::shared_ptr<const MarginalizationPrior> marginalise(const std::vector<BlockKey>& drop);
+
+  const MarginalisationStats& lastStats() const { return stats_; }
+  int numParameterBlocks() const { return static_cast<int>(blocks_.size()); }
+  int numResiduals() const { return static_cast<int>(residuals_.size()); }
+
+ private:
+  struct Block {
+    std::vector<double> values;
+    int ambient_size = 0;
+    int tangent_size = 0;
+    const ceres::Manifold* manifold = nullptr;
+    int order = 0;  // registration order
+    bool constant = false;
+  };
+  struct Residual {
+    std::shared_ptr<ceres::CostFunction> cost;
+    ceres::LossFunction* loss = nullptr;
+    std::vector<BlockKey> keys;
+  };
+
+  MarginaliserOptions options_;
+  std::map<BlockKey, Block> blocks_;
+  std::vector<Residual> residuals_;
+  MarginalisationStats stats_;
+};
+
+}  // namespace linnet

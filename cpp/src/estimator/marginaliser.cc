@@ -1,0 +1,251 @@
+// Schur-complement marginalisation into a square-root prior (see marginaliser.h for the method and references).
+#include "linnet/estimator/marginaliser.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <string>
+#include <utility>
+
+#include <Eigen/Dense>
+
+#include "linnet/core/error.h"
+
+namespace linnet {
+namespace {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+std::string keyName(BlockKey key) { return "parameter block key " + std::to_string(key); }
+
+/// Symmetric pseudo-inverse through the eigen-decomposition; eigenvalues <= threshold are treated as zero.
+/// `deficiency` receives how many were.
+Eigen::MatrixXd symmetricPseudoInverse(const Eigen::MatrixXd& A, double threshold, int* deficiency) {
+  const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(S);
+  Eigen::VectorXd inv = es.eigenvalues();
+  int zeros = 0;
+  for (Eigen::Index i = 0; i < inv.size(); ++i) {
+    if (inv(i) > threshold) {
+      inv(i) = 1.0 / inv(i);
+    } else {
+      inv(i) = 0.0;
+      ++zeros;
+    }
+  }
+  if (deficiency != nullptr) *deficiency = zeros;
+  return es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose();
+}
+
+/// Applies the loss function's correction to one residual block (residual r, tangent Jacobians per parameter block,
+/// empty for constant blocks), in place. Same algebra as Ceres' trust-region solver (Triggs et al. 2000).
+void applyLoss(const ceres::LossFunction& loss, Eigen::VectorXd* r, std::vector<Eigen::MatrixXd>* J) {
+  const double sq_norm = r->squaredNorm();
+  double rho[3];
+  loss.Evaluate(sq_norm, rho);
+  const double sqrt_rho1 = std::sqrt(std::max(rho[1], 0.0));
+  if (sq_norm == 0.0 || rho[2] <= 0.0) {
+    *r *= sqrt_rho1;
+    for (Eigen::MatrixXd& Jk : *J) Jk *= sqrt_rho1;
+    return;
+  }
+  const double D = 1.0 + 2.0 * sq_norm * rho[2] / rho[1];
+  const double alpha = 1.0 - std::sqrt(D);
+  for (Eigen::MatrixXd& Jk : *J) {
+    if (Jk.size() == 0) continue;
+    const Eigen::RowVectorXd rtJ = r->transpose() * Jk;
+    Jk = sqrt_rho1 * (Jk - (alpha / sq_norm) * (*r) * rtJ);
+  }
+  *r *= sqrt_rho1 / (1.0 - alpha);
+}
+
+}  // namespace
+
+Marginaliser::Marginaliser(MarginaliserOptions options) : options_(options) {}
+
+void Marginaliser::addParameterBlock(BlockKey key, const double* values, int ambient_size,
+                                     const ceres::Manifold* manifold) {
+  if (blocks_.count(key) != 0) throw UsageError("Marginaliser::addParameterBlock: " + keyName(key) + " added twice");
+  if (values == nullptr || ambient_size <= 0)
+    throw UsageError("Marginaliser::addParameterBlock: " + keyName(key) + " has no values or size " +
+                     std::to_string(ambient_size));
+  if (manifold != nullptr && manifold->AmbientSize() != ambient_size)
+    throw UsageError("Marginaliser::addParameterBlock: " + keyName(key) + " has ambient size " +
+                     std::to_string(ambient_size) + " but its manifold expects " +
+                     std::to_string(manifold->AmbientSize()));
+  Block b;
+  b.values.assign(values, values + ambient_size);
+  b.ambient_size = ambient_size;
+  b.tangent_size = manifold != nullptr ? manifold->TangentSize() : ambient_size;
+  b.manifold = manifold;
+  b.order = static_cast<int>(blocks_.size());
+  blocks_.emplace(key, std::move(b));
+}
+
+void Marginaliser::setParameterBlockConstant(BlockKey key) {
+  auto it = blocks_.find(key);
+  if (it == blocks_.end()) throw UsageError("Marginaliser::setParameterBlockConstant: unknown " + keyName(key));
+  it->second.constant = true;
+}
+
+void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss,
+                               std::vector<BlockKey> keys) {
+  if (!cost) throw UsageError("Marginaliser::addResidual: null cost function");
+  const std::vector<int32_t>& sizes = cost->parameter_block_sizes();
+  if (sizes.size() != keys.size())
+    throw UsageError("Marginaliser::addResidual: cost function has " + std::to_string(sizes.size()) +
+                     " parameter blocks but " + std::to_string(keys.size()) + " keys were given");
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    auto it = blocks_.find(keys[k]);
+    if (it == blocks_.end()) throw UsageError("Marginaliser::addResidual: unknown " + keyName(keys[k]));
+    if (it->second.ambient_size != sizes[k])
+      throw UsageError("Marginaliser::addResidual: " + keyName(keys[k]) + " has size " +
+                       std::to_string(it->second.ambient_size) + " but the cost function's block " +
+                       std::to_string(k) + " has size " + std::to_string(sizes[k]));
+  }
+  residuals_.push_back(Residual{std::move(cost), loss, std::move(keys)});
+}
+
+std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std::vector<BlockKey>& drop) {
+  stats_ = MarginalisationStats{};
+  // Dropped blocks (in the order given, duplicates ignored) come first in the linear system.
+  std::set<BlockKey> drop_set;
+  std::vector<BlockKey> dropped;
+  for (BlockKey key : drop) {
+    auto it = blocks_.find(key);
+    if (it == blocks_.end()) throw UsageError("Marginaliser::marginalise: unknown " + keyName(key));
+    if (it->second.constant) continue;  // a constant block has no columns to eliminate
+    if (drop_set.insert(key).second) dropped.push_back(key);
+  }
+
+  // Residuals touching a dropped block, and the kept blocks they reach (registration order).
+  std::vector<const Residual*> used;
+  std::set<BlockKey> kept_set;
+  for (const Residual& res : residuals_) {
+    const bool touches = std::any_of(res.keys.begin(), res.keys.end(),
+                                     [&](BlockKey k) { return drop_set.count(k) != 0; });
+    if (!touches) continue;
+    used.push_back(&res);
+    for (BlockKey k : res.keys)
+      if (drop_set.count(k) == 0 && !blocks_.at(k).constant) kept_set.insert(k);
+  }
+  if (used.empty()) return nullptr;
+  std::vector<BlockKey> kept(kept_set.begin(), kept_set.end());
+  std::sort(kept.begin(), kept.end(),
+            [&](BlockKey a, BlockKey b) { return blocks_.at(a).order < blocks_.at(b).order; });
+
+  // Column offsets in the joint system [dropped | kept].
+  std::map<BlockKey, int> offset;
+  int m = 0;
+  for (BlockKey k : dropped) {
+    offset[k] = m;
+    m += blocks_.at(k).tangent_size;
+  }
+  int n = 0;
+  for (BlockKey k : kept) {
+    offset[k] = m + n;
+    n += blocks_.at(k).tangent_size;
+  }
+  const int total = m + n;
+
+  // Accumulate H = sum J^T J and g = sum J^T r (tangent space, loss-corrected).
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(total, total);
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(total);
+  for (const Residual* res : used) {
+    const int nr = res->cost->num_residuals();
+    const std::size_t nb = res->keys.size();
+    std::vector<const double*> params(nb);
+    std::vector<RowMatrix> jac_amb(nb);
+    std::vector<double*> jac_ptr(nb, nullptr);
+    for (std::size_t k = 0; k < nb; ++k) {
+      const Block& b = blocks_.at(res->keys[k]);
+      params[k] = b.values.data();
+      if (!b.constant) {
+        jac_amb[k].resize(nr, b.ambient_size);
+        jac_ptr[k] = jac_amb[k].data();
+      }
+    }
+    Eigen::VectorXd r(nr);
+    if (!res->cost->Evaluate(params.data(), r.data(), jac_ptr.data()))
+      throw InputError("Marginaliser::marginalise: a cost function over " + keyName(res->keys.front()) +
+                       " failed to evaluate at the linearisation point");
+    // Tangent Jacobian per non-constant block.
+    std::vector<Eigen::MatrixXd> J(nb);
+    bool finite = r.allFinite();
+    for (std::size_t k = 0; k < nb; ++k) {
+      const Block& b = blocks_.at(res->keys[k]);
+      if (b.constant) continue;
+      if (b.manifold == nullptr) {
+        J[k] = jac_amb[k];
+      } else {
+        RowMatrix plus(b.ambient_size, b.tangent_size);
+        if (!b.manifold->PlusJacobian(b.values.data(), plus.data()))
+          throw InputError("Marginaliser::marginalise: PlusJacobian failed for " + keyName(res->keys[k]));
+        J[k] = jac_amb[k] * plus;
+      }
+      finite = finite && J[k].allFinite();
+    }
+    if (!finite)
+      throw InputError("Marginaliser::marginalise: non-finite residual or Jacobian over " +
+                       keyName(res->keys.front()));
+    if (res->loss != nullptr) applyLoss(*res->loss, &r, &J);
+    // Block-wise accumulation: only the touched blocks of H and g change.
+    for (std::size_t a = 0; a < nb; ++a) {
+      if (J[a].size() == 0) continue;
+      const int oa = offset.at(res->keys[a]);
+      g.segment(oa, J[a].cols()).noalias() += J[a].transpose() * r;
+      for (std::size_t b = 0; b < nb; ++b) {
+        if (J[b].size() == 0) continue;
+        const int ob = offset.at(res->keys[b]);
+        H.block(oa, ob, J[a].cols(), J[b].cols()).noalias() += J[a].transpose() * J[b];
+      }
+    }
+  }
+  H = 0.5 * (H + H.transpose());
+
+  // Schur complement: H* = H_rr - H_rm H_mm^+ H_mr, g* = g_r - H_rm H_mm^+ g_m.
+  int deficiency = 0;
+  const Eigen::MatrixXd Hmm_inv = symmetricPseudoInverse(H.topLeftCorner(m, m), options_.eigenvalue_threshold,
+                                                         &deficiency);
+  const Eigen::MatrixXd Hrm_Hmm_inv = H.bottomLeftCorner(n, m) * Hmm_inv;
+  Eigen::MatrixXd H_star = H.bottomRightCorner(n, n) - Hrm_Hmm_inv * H.topRightCorner(m, n);
+  const Eigen::VectorXd g_star = g.tail(n) - Hrm_Hmm_inv * g.head(m);
+  H_star = 0.5 * (H_star + H_star.transpose());
+
+  stats_.residuals_used = static_cast<int>(used.size());
+  stats_.dropped_size = m;
+  stats_.kept_size = n;
+  stats_.dropped_rank_deficiency = deficiency;
+  if (n == 0) return nullptr;
+
+  // H* = V S V^T  ->  J = sqrt(S) V^T, r = sqrt(S)^-1 V^T g*, keeping eigenvalues above the threshold.
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(H_star);
+  std::vector<int> keep;
+  for (int i = 0; i < n; ++i)
+    if (es.eigenvalues()(i) > options_.eigenvalue_threshold) keep.push_back(i);
+  stats_.prior_rank = static_cast<int>(keep.size());
+  if (keep.empty()) return nullptr;
+
+  auto prior = std::make_shared<MarginalizationPrior>();
+  prior->J.resize(static_cast<Eigen::Index>(keep.size()), n);
+  prior->r.resize(static_cast<Eigen::Index>(keep.size()));
+  for (std::size_t row = 0; row < keep.size(); ++row) {
+    const double s = es.eigenvalues()(keep[row]);
+    const auto v = es.eigenvectors().col(keep[row]);
+    prior->J.row(static_cast<Eigen::Index>(row)) = std::sqrt(s) * v.transpose();
+    prior->r(static_cast<Eigen::Index>(row)) = v.dot(g_star) / std::sqrt(s);
+  }
+  prior->dropped_tangent_size = m;
+  for (BlockKey k : kept) {
+    const Block& b = blocks_.at(k);
+    prior->keys.push_back(k);
+    prior->ambient_sizes.push_back(b.ambient_size);
+    prior->tangent_sizes.push_back(b.tangent_size);
+    prior->tangent_offsets.push_back(offset.at(k) - m);
+    prior->x0.push_back(b.values);
+    prior->manifolds.push_back(b.manifold);
+  }
+  return prior;
+}
+
+}  // namespace linnet
