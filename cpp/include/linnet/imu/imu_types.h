@@ -1,6 +1,7 @@
 // IMU samples and noise parameters.
 #pragma once
 
+#include "linnet/core/pose.h"
 #include "linnet/core/types.h"
 
 namespace linnet {
@@ -30,6 +31,18 @@ struct ImuNoise {
     v("rate_hz", rate_hz, "nominal IMU rate, Hz", 1.0, 10000.0);
     v("gravity", gravity, "gravity magnitude, m/s^2", 9.0, 10.5);
   }
+
+  /// Gravity vector in W: (0, 0, -gravity).
+  Vec3 gravityVector() const { return Vec3(0.0, 0.0, -gravity); }
+};
+
+/// Navigation state of the body at one instant: pose T_W_B, velocity in W, biases in B.
+struct ImuState {
+  Timestamp t = 0;          // ns
+  Pose T_W_B;               // body (IMU) pose in W
+  Vec3 v_W = Vec3::Zero();  // m/s
+  Vec3 b_a = Vec3::Zero();  // accelerometer bias, m/s^2
+  Vec3 b_g = Vec3::Zero();  // gyroscope bias, rad/s
 };
 
 }  // namespace linnet
