@@ -1,0 +1,61 @@
+// The sliding-window stereo-inertial estimator (DESIGN B1; thesis ch. 4-5).
+//
+// Per frame: preintegrate the IMU to the frame, predict its state, decide whether it is a keyframe, triangulate new
+// points, solve the window (prior + IMU + the three point residual kinds, Huber loss) with Ceres, reject outliers,
+// detect failures (reset + re-initialise from the last good state, keeping the output continuous), and slide the
+// window: marginalise the oldest frame when the second-newest is a keyframe, otherwise drop the second-newest frame's
+// visual measurements and merge its preintegration into the newest one's.
+//
+// Deterministic: single-threaded Ceres, ordered containers; the same inputs give bit-identical outputs as long as
+// the solver's time bound (solver.max_solver_time_s) does not bind.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "linnet/core/frame_observations.h"
+#include "linnet/core/pose.h"
+#include "linnet/estimator/estimator_options.h"
+#include "linnet/imu/imu_types.h"
+
+namespace linnet {
+
+enum class TrackingStatus { kInitialising, kTracking, kLost };
+const char* toString(TrackingStatus s);
+
+struct EstimatorOutput {
+  Timestamp t = 0;
+  TrackingStatus status = TrackingStatus::kInitialising;
+  bool has_pose = false;       // true once initialised (also while dead-reckoning after a failure)
+  Pose T_W_B;
+  Vec3 v_W = Vec3::Zero(), b_a = Vec3::Zero(), b_g = Vec3::Zero();
+  bool keyframe = false;
+  int num_points = 0;          // landmarks used in the last solve
+  int reinitialisations = 0;   // so far
+  double solve_ms = 0.0;       // back-end wall time for this frame
+};
+
+class EstimatorCore;
+
+class Estimator {
+ public:
+  /// T_B_C1 = nullopt: monocular (stays kInitialising until the mono initialiser exists). Validates the options
+  /// (ConfigError naming the key).
+  Estimator(const EstimatorOptions& options, const ImuNoise& noise, const Pose& T_B_C0, std::optional<Pose> T_B_C1);
+  ~Estimator();
+  Estimator(const Estimator&) = delete;
+  Estimator& operator=(const Estimator&) = delete;
+
+  /// Adds one IMU sample; time stamps must increase strictly (InputError otherwise).
+  void addImu(const ImuSample& s);
+  /// Processes one frame; the IMU must have been added up to obs.t. Frame times must increase (UsageError).
+  EstimatorOutput addFrame(const FrameObservations& obs);
+  /// Triangulated points of the current window, in W.
+  std::vector<Vec3> landmarkPositions() const;
+
+ private:
+  std::unique_ptr<EstimatorCore> core_;
+};
+
+}  // namespace linnet

@@ -1,0 +1,118 @@
+// Options of the sliding-window stereo-inertial estimator (DESIGN B1). One struct per concern, gathered in
+// EstimatorOptions; every field has a default, a unit and a range in visit().
+#pragma once
+
+#include <string>
+
+#include "linnet/core/options.h"
+#include "linnet/imu/gravity_alignment.h"
+
+namespace linnet {
+
+/// IMU-aided keyframe selection (thesis ch. 4, "keyframe selection"; DESIGN B1).
+struct KeyframeOptions {
+  double min_parallax_px = 10.0;       // rotation-compensated mean parallax to the last keyframe, pixels
+  double static_translation_m = 0.05;  // IMU-integrated translation below this = static or pure rotation, m
+  double max_rotation_deg = 20.0;      // in the small-translation case a keyframe also needs rotation below this, deg
+  int min_tracked = 40;                // fewer points tracked from the last keyframe forces a keyframe
+  double max_gap_s = 2.0;              // a keyframe at least this often (bounds a preintegration's length), s
+
+  template <class V>
+  void visit(V& v) {
+    v("min_parallax_px", min_parallax_px, "keyframe if mean parallax exceeds this, pixels", 0.0, 1000.0);
+    v("static_translation_m", static_translation_m, "translation below this = static / pure rotation, m", 0.0, 100.0);
+    v("max_rotation_deg", max_rotation_deg, "small-translation keyframes need rotation below this, deg", 0.0, 180.0);
+    v("min_tracked", min_tracked, "fewer tracked points forces a keyframe", 0, 100000);
+    v("max_gap_s", max_gap_s, "longest time between keyframes, s", 0.05, 1000.0);
+  }
+};
+
+/// Stereo-inertial initialisation (DESIGN B1, thesis ch. 5).
+struct InitOptions {
+  double gravity_window_s = 0.5;     // IMU before the first frame averaged for gravity alignment, s
+  StaticDetectionOptions at_rest;    // when the IMU window counts as "at rest" (static initialisation)
+  int moving_frames = 8;             // frames collected by PnP before the gyro bias / velocity solve when moving
+  int min_points = 15;               // stereo-triangulated points needed to start (and for each PnP)
+  double max_pnp_error_px = 3.0;     // RMS reprojection error that a PnP pose must reach, pixels
+
+  template <class V>
+  void visit(V& v) {
+    v("gravity_window_s", gravity_window_s, "IMU averaged for gravity alignment, s", 0.01, 10.0);
+    v.section("at_rest", at_rest);
+    v("moving_frames", moving_frames, "frames before the moving initialisation solve", 3, 100);
+    v("min_points", min_points, "stereo points needed to initialise", 4, 10000);
+    v("max_pnp_error_px", max_pnp_error_px, "largest RMS PnP reprojection error, pixels", 0.1, 100.0);
+  }
+};
+
+/// Failure detection -> reset and re-initialisation from the last good state.
+struct FailureOptions {
+  int min_tracked = 8;               // fewer landmarks seen in the newest frame = failure
+  double max_velocity = 10.0;        // m/s
+  double max_acc_bias = 2.5;         // m/s^2
+  double max_gyr_bias = 1.0;         // rad/s
+  double max_jump_m = 2.0;           // largest position change of the newest frame in one solve, m
+  double max_jump_deg = 30.0;        // largest rotation change of the newest frame in one solve, deg
+  double max_dead_reckoning_s = 2.0; // after a failure, IMU-only output for at most this long, then kLost, s
+
+  template <class V>
+  void visit(V& v) {
+    v("min_tracked", min_tracked, "tracked landmarks below this = failure", 0, 10000);
+    v("max_velocity", max_velocity, "speed above this = failure, m/s", 0.1, 1000.0);
+    v("max_acc_bias", max_acc_bias, "accelerometer bias norm above this = failure, m/s^2", 0.01, 100.0);
+    v("max_gyr_bias", max_gyr_bias, "gyroscope bias norm above this = failure, rad/s", 0.001, 100.0);
+    v("max_jump_m", max_jump_m, "position jump in one solve above this = failure, m", 0.01, 1000.0);
+    v("max_jump_deg", max_jump_deg, "rotation jump in one solve above this = failure, deg", 0.1, 180.0);
+    v("max_dead_reckoning_s", max_dead_reckoning_s, "IMU-only output after a failure at most this long, s", 0.0,
+      100.0);
+  }
+};
+
+/// Back-end solver and measurement model.
+struct SolverOptions {
+  int max_num_iterations = 8;        // Ceres iterations per frame
+  double max_solver_time_s = 0.2;    // Ceres wall-time bound per frame, s (must not bind for bit-identical runs)
+  std::string trust_region = "dogleg";   // "levenberg_marquardt" | "dogleg"
+  std::string linear_solver = "dense_schur";  // "dense_schur" | "sparse_normal_cholesky"
+  double focal_length = 460.0;       // pixels per normalised unit: sqrt_info = focal_length / pixel_sigma
+  double pixel_sigma = 1.5;          // std of a point observation, pixels
+  double huber_px = 1.0;             // Huber threshold on the whitened point residual (units of pixel_sigma)
+  double outlier_px = 3.0;           // landmarks whose mean reprojection error exceeds this are removed, pixels
+  double min_depth_m = 0.1;          // triangulated depth range, m
+  double max_depth_m = 40.0;
+  double min_triangulation_deg = 1.0;  // smallest ray angle for a multi-view (non-stereo) triangulation, deg
+
+  template <class V>
+  void visit(V& v) {
+    v("max_num_iterations", max_num_iterations, "Ceres iterations per frame", 1, 1000);
+    v("max_solver_time_s", max_solver_time_s, "Ceres time bound per frame, s", 0.001, 100.0);
+    v.choice("trust_region", trust_region, "trust-region strategy", {"levenberg_marquardt", "dogleg"});
+    v.choice("linear_solver", linear_solver, "linear solver", {"dense_schur", "sparse_normal_cholesky"});
+    v("focal_length", focal_length, "pixels per normalised unit", 1.0, 10000.0);
+    v("pixel_sigma", pixel_sigma, "point observation std, pixels", 0.01, 100.0);
+    v("huber_px", huber_px, "Huber threshold, whitened units", 0.01, 100.0);
+    v("outlier_px", outlier_px, "mean reprojection error limit, pixels", 0.1, 1000.0);
+    v("min_depth_m", min_depth_m, "nearest triangulated depth, m", 0.001, 100.0);
+    v("max_depth_m", max_depth_m, "farthest triangulated depth, m", 0.1, 100000.0);
+    v("min_triangulation_deg", min_triangulation_deg, "smallest multi-view ray angle, deg", 0.0, 90.0);
+  }
+};
+
+struct EstimatorOptions {
+  int window_size = 10;              // keyframes in the window (plus the newest frame)
+  SolverOptions solver;
+  KeyframeOptions keyframe;
+  InitOptions init;
+  FailureOptions failure;
+
+  template <class V>
+  void visit(V& v) {
+    v("window_size", window_size, "keyframes in the sliding window", 2, 100);
+    v.section("solver", solver);
+    v.section("keyframe", keyframe);
+    v.section("init", init);
+    v.section("failure", failure);
+  }
+};
+
+}  // namespace linnet

@@ -1,0 +1,25 @@
+// A residual block described independently of where it goes: into the per-frame Ceres problem or into the
+// marginaliser. Every landmark kind (points now, lines later) and the IMU emit these, so the problem builder and the
+// marginalisation code handle all kinds the same way.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <ceres/cost_function.h>
+
+namespace linnet {
+
+struct ResidualSpec {
+  std::shared_ptr<ceres::CostFunction> cost;
+  bool robust = false;                 // wrap in the Huber loss of the visual residuals
+  std::vector<double*> blocks;         // parameter blocks, in the cost function's order
+  std::vector<std::int64_t> keys;      // the same blocks as marginalisation keys
+};
+
+/// Marginalisation keys of landmark blocks. Frame blocks use frameBlockKey() (>= 0), landmarks negative keys.
+inline std::int64_t pointBlockKey(std::int64_t landmark_id) { return -(2 * landmark_id + 1); }
+inline std::int64_t lineBlockKey(std::int64_t landmark_id) { return -(2 * landmark_id + 2); }
+
+}  // namespace linnet

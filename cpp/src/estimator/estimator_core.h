@@ -1,0 +1,83 @@
+// Internal state machine behind linnet::Estimator (not installed; see estimator.h for the contract).
+// estimator.cc: frame flow, initialisation, failure handling. estimator_solve.cc: problem building, solving,
+// marginalisation / window sliding.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include <ceres/loss_function.h>
+
+#include "linnet/estimator/estimator.h"
+#include "linnet/estimator/factors/prior_factor.h"
+#include "linnet/estimator/manifolds.h"
+#include "linnet/estimator/point_landmarks.h"
+#include "linnet/estimator/residual_spec.h"
+#include "linnet/estimator/window.h"
+#include "linnet/imu/imu_buffer.h"
+
+namespace linnet {
+
+/// A full navigation state at one time.
+using NavState = ImuState;
+
+class EstimatorCore {
+ public:
+  EstimatorCore(const EstimatorOptions& options, const ImuNoise& noise, const Pose& T_B_C0,
+                std::optional<Pose> T_B_C1);
+
+  void addImu(const ImuSample& s);
+  EstimatorOutput addFrame(const FrameObservations& obs);
+  std::vector<Vec3> landmarkPositions() const { return points_.positions(window_); }
+
+ private:
+  enum class Mode { kWaitingForFirstFrame, kCollecting, kTracking };
+
+  // --- estimator.cc
+  /// Starts a new window at `obs` from the state `start` (pose, velocity, biases). Returns true if the window's
+  /// first frame has enough stereo points for tracking to begin at once (known velocity).
+  bool startWindow(const FrameObservations& obs, const NavState& start, bool velocity_known);
+  /// The state to start the first window from: gravity-aligned attitude, gyro bias / zero velocity when static.
+  NavState firstState(Timestamp t, bool* is_static) const;
+  /// Moving initialisation: PnP pose of the newest frame; after init.moving_frames, gyro bias + velocities.
+  bool collectStep(const FrameObservations& obs);
+  bool finishMovingInit();
+  /// A new window frame at obs.t, its preintegration from the newest frame and the IMU-predicted state.
+  WindowFrame& pushPredicted(Timestamp t);
+  NavState predictFrom(const WindowFrame& f, Timestamp t) const;
+  void decideKeyframe(WindowFrame& f, int tracked);
+  bool failureAfterSolve(const NavState& predicted) const;
+  void resetAfterFailure(const FrameObservations& obs, const NavState& state, EstimatorOutput* out);
+  EstimatorOutput output(const WindowFrame& f) const;
+
+  // --- estimator_solve.cc
+  void repropagateIfNeeded();
+  std::vector<ResidualSpec> imuResiduals(int first, int last);
+  void solveWindow();
+  void slideWindow();
+  void marginaliseOldest();
+  void dropFrame(int index);
+
+  EstimatorOptions options_;
+  ImuNoise noise_;
+  Pose T_B_C0_;
+  std::optional<Pose> T_B_C1_;
+  Vec3 g_W_;
+
+  ImuBuffer imu_;
+  Window window_;
+  PointLandmarks points_;
+  std::vector<std::shared_ptr<const MarginalizationPrior>> priors_;
+  PoseManifold pose_manifold_;
+  ceres::HuberLoss huber_;
+
+  Mode mode_ = Mode::kWaitingForFirstFrame;
+  std::optional<NavState> last_good_;   // newest state of the last good solve (for re-initialisation)
+  Timestamp last_frame_t_ = 0;
+  bool have_frame_ = false;
+  int reinitialisations_ = 0;
+  Timestamp lost_since_ = -1;           // first frame time of the current failure, -1 if tracking
+};
+
+}  // namespace linnet

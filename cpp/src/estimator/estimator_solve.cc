@@ -1,0 +1,177 @@
+// Problem building, solving and window sliding with marginalisation (DESIGN B1; thesis ch. 4).
+#include <algorithm>
+#include <set>
+
+#include <ceres/problem.h>
+#include <ceres/solver.h>
+
+#include "estimator_core.h"
+#include "linnet/estimator/factors/imu_factor.h"
+#include "linnet/estimator/marginaliser.h"
+
+namespace linnet {
+
+void EstimatorCore::repropagateIfNeeded() {
+  for (int k = 1; k < window_.size(); ++k) {
+    Preintegration& pre = *window_[k].preint;
+    const WindowFrame& i = window_[k - 1];
+    if (pre.biasMovedFar(i.ba(), i.bg())) pre.repropagate(i.ba(), i.bg());
+  }
+}
+
+std::vector<ResidualSpec> EstimatorCore::imuResiduals(int first, int last) {
+  std::vector<ResidualSpec> out;
+  for (int k = std::max(1, first); k <= last && k < window_.size(); ++k) {
+    WindowFrame& i = window_[k - 1];
+    WindowFrame& j = window_[k];
+    if (!j.preint) continue;
+    ResidualSpec r;
+    r.cost = std::make_shared<ImuFactor>(*j.preint, g_W_);
+    r.blocks = {i.pose.data(), i.speed_bias.data(), j.pose.data(), j.speed_bias.data()};
+    r.keys = {frameBlockKey(i.id, BlockKind::kPose), frameBlockKey(i.id, BlockKind::kSpeedBias),
+              frameBlockKey(j.id, BlockKind::kPose), frameBlockKey(j.id, BlockKind::kSpeedBias)};
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+void EstimatorCore::solveWindow() {
+  repropagateIfNeeded();
+  ceres::Problem::Options po;
+  po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  for (int k = 0; k < window_.size(); ++k) {
+    problem.AddParameterBlock(window_[k].pose.data(), kPoseAmbientSize, &pose_manifold_);
+    problem.AddParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize);
+  }
+  // Keep the cost functions alive for the solve (the problem does not own them).
+  std::vector<std::shared_ptr<ceres::CostFunction>> keep;
+  std::vector<std::shared_ptr<PriorFactor>> prior_factors;
+  for (const auto& prior : priors_) {
+    std::vector<double*> blocks;
+    bool complete = true;
+    for (BlockKey key : prior->keys) {
+      double* b = window_.block(key);
+      if (b == nullptr) complete = false;
+      blocks.push_back(b);
+    }
+    if (!complete) continue;
+    auto f = std::make_shared<PriorFactor>(prior);
+    problem.AddResidualBlock(f.get(), nullptr, blocks);
+    keep.push_back(f);
+  }
+  std::vector<ResidualSpec> residuals = imuResiduals(1, window_.size() - 1);
+  std::vector<ResidualSpec> visual = points_.residuals(window_);
+  for (ResidualSpec& r : visual) residuals.push_back(std::move(r));
+  for (const ResidualSpec& r : residuals) {
+    problem.AddResidualBlock(r.cost.get(), r.robust ? &huber_ : nullptr, r.blocks);
+    keep.push_back(r.cost);
+  }
+  // With no prior yet, the gauge (position and yaw) is held by the oldest pose's IMU-free neighbours only through
+  // damping; fixing nothing keeps roll and pitch free for gravity to correct.
+  const SolverOptions& so = options_.solver;
+  ceres::Solver::Options opts;
+  opts.max_num_iterations = so.max_num_iterations;
+  opts.max_solver_time_in_seconds = so.max_solver_time_s;
+  opts.num_threads = 1;
+  opts.logging_type = ceres::SILENT;
+  opts.trust_region_strategy_type =
+      so.trust_region == "dogleg" ? ceres::DOGLEG : ceres::LEVENBERG_MARQUARDT;
+  opts.linear_solver_type =
+      so.linear_solver == "dense_schur" ? ceres::DENSE_SCHUR : ceres::SPARSE_NORMAL_CHOLESKY;
+  ceres::Solver::Summary summary;
+  ceres::Solve(opts, &problem, &summary);
+}
+
+void EstimatorCore::marginaliseOldest() {
+  const WindowFrame& old = window_[0];
+  const FrameId old_id = old.id;
+  Marginaliser m;
+  std::set<BlockKey> registered;
+  auto reg = [&](BlockKey key, double* values, int size, const ceres::Manifold* manifold) {
+    if (registered.insert(key).second) m.addParameterBlock(key, values, size, manifold);
+  };
+  auto regFrameKey = [&](BlockKey key) {
+    const bool pose = key % 4 == static_cast<int>(BlockKind::kPose);
+    reg(key, window_.block(key), pose ? kPoseAmbientSize : kSpeedBiasSize, pose ? &pose_manifold_ : nullptr);
+  };
+  const std::vector<BlockKey> drop_frame = {frameBlockKey(old_id, BlockKind::kPose),
+                                            frameBlockKey(old_id, BlockKind::kSpeedBias)};
+  std::vector<std::shared_ptr<const MarginalizationPrior>> kept_priors;
+  for (const auto& prior : priors_) {
+    const bool touches = std::any_of(prior->keys.begin(), prior->keys.end(), [&](BlockKey k) {
+      return k == drop_frame[0] || k == drop_frame[1];
+    });
+    if (!touches) {
+      kept_priors.push_back(prior);
+      continue;
+    }
+    for (BlockKey k : prior->keys) regFrameKey(k);
+    m.addResidual(std::make_shared<PriorFactor>(prior), nullptr, prior->keys);
+  }
+  for (const ResidualSpec& r : imuResiduals(1, 1)) {
+    for (BlockKey k : r.keys) regFrameKey(k);
+    m.addResidual(r.cost, nullptr, r.keys);
+  }
+  std::vector<BlockKey> drop = drop_frame;
+  std::vector<ResidualSpec> visual = points_.residuals(window_, old_id);
+  for (const ResidualSpec& r : visual) {
+    for (std::size_t b = 0; b < r.keys.size(); ++b) {
+      if (r.keys[b] >= 0) {
+        regFrameKey(r.keys[b]);
+      } else if (registered.insert(r.keys[b]).second) {
+        m.addParameterBlock(r.keys[b], r.blocks[b], 1, nullptr);
+        drop.push_back(r.keys[b]);
+      }
+    }
+    m.addResidual(r.cost, r.robust ? &huber_ : nullptr, r.keys);
+  }
+  // Frame blocks must be registered even if nothing else touches them (a lone oldest frame).
+  for (BlockKey k : drop_frame) regFrameKey(k);
+  std::shared_ptr<const MarginalizationPrior> prior = m.marginalise(drop);
+  priors_ = std::move(kept_priors);
+  if (prior) priors_.push_back(prior);
+  points_.removeFrame(window_, old_id);
+  window_.popOldest();
+}
+
+void EstimatorCore::dropFrame(int index) {
+  // Drop the frame's visual measurements; its IMU information survives in the merged preintegration. Priors that
+  // touch its blocks marginalise them (prior only), as the frame's pose leaves the window.
+  const FrameId id = window_[index].id;
+  const std::vector<BlockKey> drop = {frameBlockKey(id, BlockKind::kPose), frameBlockKey(id, BlockKind::kSpeedBias)};
+  std::vector<std::shared_ptr<const MarginalizationPrior>> next;
+  for (const auto& prior : priors_) {
+    std::vector<BlockKey> d;
+    for (BlockKey k : drop)
+      if (prior->indexOf(k) >= 0) d.push_back(k);
+    if (d.empty()) {
+      next.push_back(prior);
+      continue;
+    }
+    Marginaliser m;
+    for (BlockKey k : prior->keys) {
+      const bool pose = k % 4 == static_cast<int>(BlockKind::kPose);
+      m.addParameterBlock(k, window_.block(k), pose ? kPoseAmbientSize : kSpeedBiasSize,
+                          pose ? &pose_manifold_ : nullptr);
+    }
+    m.addResidual(std::make_shared<PriorFactor>(prior), nullptr, prior->keys);
+    if (auto p = m.marginalise(d)) next.push_back(p);
+  }
+  priors_ = std::move(next);
+  points_.removeFrame(window_, id);
+  window_.removeMerging(index);
+}
+
+void EstimatorCore::slideWindow() {
+  const int n = window_.size();
+  if (n >= 3 && !window_[n - 2].keyframe) {
+    dropFrame(n - 2);
+  } else if (n > options_.window_size + 1) {
+    marginaliseOldest();
+  }
+}
+
+}  // namespace linnet

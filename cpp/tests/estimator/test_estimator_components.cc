@@ -1,0 +1,148 @@
+// Unit tests of the estimator's building blocks: keyframe policy, PnP, window sliding, point landmarks.
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "estimator/synthetic_vio.h"
+#include "linnet/core/error.h"
+#include "linnet/estimator/keyframe_policy.h"
+#include "linnet/estimator/pnp.h"
+#include "linnet/estimator/point_landmarks.h"
+#include "linnet/estimator/window.h"
+
+namespace linnet::testing {
+namespace {
+
+TEST(KeyframePolicy, ThesisCases) {
+  KeyframeOptions o;
+  KeyframeInputs in;
+  in.tracked = 100;
+  in.dt_s = 0.1;
+  // Static: no parallax -> no keyframe.
+  EXPECT_EQ(keyframeDecision(o, in), KeyframeReason::kNone);
+  // Pure rotation (small P, large Q) with (uncompensated) parallax -> no keyframe.
+  in.parallax_px = 30.0;
+  in.rotation_rad = 0.6;
+  EXPECT_EQ(keyframeDecision(o, in), KeyframeReason::kNone);
+  // Small P, small Q, parallax -> keyframe.
+  in.rotation_rad = 0.05;
+  EXPECT_EQ(keyframeDecision(o, in), KeyframeReason::kParallax);
+  // Translation with parallax -> keyframe, whatever the rotation; without parallax -> none.
+  in.translation_m = 0.5;
+  in.rotation_rad = 0.6;
+  EXPECT_EQ(keyframeDecision(o, in), KeyframeReason::kParallax);
+  in.parallax_px = 2.0;
+  EXPECT_EQ(keyframeDecision(o, in), KeyframeReason::kNone);
+  // Too few tracked points or a long gap force one.
+  in.tracked = 3;
+  EXPECT_EQ(keyframeDecision(o, in), KeyframeReason::kTooFewTracked);
+  in.tracked = 100;
+  in.dt_s = 5.0;
+  EXPECT_EQ(keyframeDecision(o, in), KeyframeReason::kTimeGap);
+}
+
+TEST(KeyframePolicy, CompensatedParallaxCancelsPureRotation) {
+  const Mat3 R = expSO3(Vec3(0.02, -0.1, 0.05)).toRotationMatrix();
+  std::vector<std::pair<Vec2, Vec2>> corr;
+  for (int i = 0; i < 20; ++i) {
+    const Vec3 ray(0.03 * i - 0.3, 0.2 - 0.02 * i, 1.0);
+    const Vec3 r2 = R * ray;
+    corr.emplace_back(ray.head<2>(), r2.head<2>() / r2.z());
+  }
+  EXPECT_LT(compensatedParallaxPx(corr, R, 460.0), 1e-9);
+  EXPECT_GT(compensatedParallaxPx(corr, Mat3::Identity(), 460.0), 10.0);
+}
+
+TEST(Pnp, RecoversPoseFromPerturbedGuessWithOutliers) {
+  const Pose T_B_C0 = eurocTBC0();
+  const Pose truth(expSO3(Vec3(0.1, -0.2, 0.3)), Vec3(0.5, -0.2, 1.0));
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Vec3> p_W;
+  std::vector<Vec2> uv;
+  const Pose T_W_C = truth * T_B_C0;
+  for (int i = 0; i < 60; ++i) {
+    const Vec3 p_C(2.0 * u(rng), 1.5 * u(rng), 4.0 + 2.0 * u(rng));
+    p_W.push_back(T_W_C * p_C);
+    uv.push_back(p_C.head<2>() / p_C.z());
+  }
+  for (int i = 0; i < 5; ++i) uv[static_cast<std::size_t>(i)] += Vec2(0.05, -0.04);  // gross outliers (~20 px)
+  Pose T = Pose(truth.q * expSO3(Vec3(0.03, -0.02, 0.04)), truth.p + Vec3(0.1, -0.05, 0.08));
+  const PnpResult r = refinePosePnp(p_W, uv, T_B_C0, 460.0, 3.0, &T);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(r.inliers, 55);
+  EXPECT_LT(r.rms_px, 1e-6);
+  EXPECT_LT((T.p - truth.p).norm(), 1e-6);
+  EXPECT_LT(logSO3(T.q.conjugate() * truth.q).norm(), 1e-6);
+}
+
+TEST(Window, IdsKeysAndSliding) {
+  Window w;
+  ImuNoise noise;
+  for (int k = 0; k < 4; ++k) {
+    WindowFrame& f = w.push(1'000'000'000LL + k * 50'000'000LL);
+    if (k > 0) {
+      std::vector<ImuSample> s;
+      for (int i = 0; i <= 10; ++i) {
+        ImuSample m;
+        m.t = f.t - 50'000'000LL + i * 5'000'000LL;
+        m.acc = Vec3(0.1 * k, 9.81, 0.0);
+        m.gyr = Vec3(0.01, 0.02 * k, 0.0);
+        s.push_back(m);
+      }
+      f.preint = std::make_unique<Preintegration>(s, noise, Vec3::Zero(), Vec3::Zero());
+    }
+  }
+  EXPECT_EQ(w.size(), 4);
+  EXPECT_EQ(w.indexOf(2), 2);
+  EXPECT_EQ(w.block(frameBlockKey(2, BlockKind::kPose)), w[2].pose.data());
+  EXPECT_EQ(w.block(frameBlockKey(2, BlockKind::kSpeedBias)), w[2].speed_bias.data());
+  // Merging frame 2 into 3: the newest preintegration then spans frames 1 -> 3.
+  w.removeMerging(2);
+  EXPECT_EQ(w.size(), 3);
+  EXPECT_EQ(w.indexOf(2), -1);
+  EXPECT_EQ(w.block(frameBlockKey(2, BlockKind::kPose)), nullptr);
+  EXPECT_NEAR(w[2].preint->sumDt(), 0.1, 1e-12);
+  w.popOldest();
+  EXPECT_EQ(w[0].id, 1);
+  EXPECT_EQ(w[0].preint, nullptr);
+  EXPECT_THROW(w.removeMerging(0), UsageError);
+}
+
+TEST(PointLandmarks, StereoTriangulationReanchoringAndResidualKinds) {
+  const Pose T_B_C0 = eurocTBC0(), T_B_C1 = eurocTBC1();
+  Window w;
+  w.push(0).setPose(Pose(Quat::Identity(), Vec3::Zero()));
+  w.push(1).setPose(Pose(expSO3(Vec3(0.0, 0.05, 0.0)), Vec3(0.0, 0.3, 0.0)));
+  const Vec3 p_W(0.3, -0.2, 5.0);
+  auto observation = [&](const WindowFrame& f, bool right) {
+    PointObservation o;
+    o.id = 42;
+    const Vec3 c0 = (f.T_W_B() * T_B_C0).inverse() * p_W, c1 = (f.T_W_B() * T_B_C1).inverse() * p_W;
+    o.uv0 = c0.head<2>() / c0.z();
+    o.has_right = right;
+    o.uv1 = c1.head<2>() / c1.z();
+    return std::vector<PointObservation>{o};
+  };
+  PointLandmarks lms(SolverOptions(), T_B_C0, T_B_C1);
+  lms.observe(w[0].id, observation(w[0], true));
+  EXPECT_EQ(lms.triangulate(w), 1);
+  lms.observe(w[1].id, observation(w[1], true));
+  EXPECT_LT((lms.worldPosition(w, lms.all().at(42)) - p_W).norm(), 1e-6);
+  // Host frame: kind 3; the other frame: kinds 1 and 2.
+  const std::vector<ResidualSpec> r = lms.residuals(w);
+  ASSERT_EQ(r.size(), 3u);
+  EXPECT_EQ(r[0].blocks.size(), 1u);
+  EXPECT_EQ(r[1].blocks.size(), 3u);
+  EXPECT_EQ(lms.countUsed(), 1);
+  EXPECT_EQ(lms.rejectOutliers(w), 0);
+  // Removing the host re-anchors the point in frame 1 at the same world position.
+  lms.removeFrame(w, w[0].id);
+  const PointLandmark& lm = lms.all().at(42);
+  EXPECT_EQ(lm.host, w[1].id);
+  EXPECT_LT((lms.worldPosition(w, lm) - p_W).norm(), 1e-6);
+}
+
+}  // namespace
+}  // namespace linnet::testing
