@@ -78,12 +78,36 @@ int clipNear(const std::array<Vec3, 4>& in, double near, std::array<Vec3, 8>* ou
   return n;
 }
 
+/// Texture lookup of one sample of quad `sq` along ray (x, y, 1) at inverse depth w. `lod2` scales the squared
+/// footprint (sub-samples are smaller than pixels; the user's mip bias).
+inline float shadeSample(const ShadingQuad& sq, float x, float y, float w, float lod2) {
+  const float z = 1.0f / w;
+  const float s = (sq.a[0] * x + sq.a[1] * y + sq.a[2]) * z - sq.a0;
+  const float t = (sq.b[0] * x + sq.b[1] * y + sq.b[2]) * z - sq.b0;
+  // Mip level from the footprint: texels per sample ~ z * lod_scale / sqrt(cos(incidence)), a compromise between the
+  // two axes of the anisotropic footprint on oblique surfaces. Level L covers footprints in [2^(L-1/2), 2^(L+1/2)).
+  const float rn2 = x * x + y * y + 1.0f;
+  const float ndot = sq.n[0] * x + sq.n[1] * y + sq.n[2];
+  const float cos2 = std::max(0.0025f, ndot * ndot / rn2);
+  float f2 = z * z * sq.lod_scale * sq.lod_scale * lod2 / std::sqrt(cos2);
+  int level = 0;
+  const int max_level = sq.texture->levels() - 1;
+  while (f2 > 2.0f && level < max_level) {
+    f2 *= 0.25f;
+    ++level;
+  }
+  const cv::Mat& img = sq.texture->level(level);
+  return sq.shade *
+         sampleBilinear(img, s * static_cast<float>(img.cols) - 0.5f, t * static_cast<float>(img.rows) - 0.5f);
+}
+
 }  // namespace
 
 struct Renderer::Raster {
   std::vector<float> w;              // inverse depth of the nearest surface per sample (0 = none)
   std::vector<int> id;               // quad index per sample (-1 = none)
   std::vector<ShadingQuad> shading;  // per quad of the scene (valid where some sample refers to it)
+  std::vector<PreparedQuad> prepared;  // per quad of the scene (n_edges == 0: not visible)
 };
 
 Renderer::Renderer(const CameraModel& camera, const RenderOptions& options) : options_(options) {
@@ -157,6 +181,7 @@ void Renderer::rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& g
   raster->w.assign(n, 0.0f);
   raster->id.assign(n, -1);
   raster->shading.assign(scene.quads().size(), ShadingQuad{});
+  raster->prepared.assign(scene.quads().size(), PreparedQuad{});
   const Mat3 R_C_W = T_W_C.R().transpose();
   const Vec3 p_W_C = T_W_C.p;
   const auto& quads = scene.quads();
@@ -226,6 +251,7 @@ void Renderer::rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& g
       sq.shade = static_cast<float>(q.shade);
     }
     pq.w = {static_cast<float>(wc.x()), static_cast<float>(wc.y()), static_cast<float>(wc.z())};
+    raster->prepared[qi] = pq;
 
     for (int ty = 0; ty < g.tiles_y; ++ty)
       for (int tx = 0; tx < g.tiles_x; ++tx) {
@@ -269,52 +295,68 @@ void Renderer::rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& g
   }
 }
 
-void Renderer::shade(const RayGrid& g, const Raster& raster, std::vector<float>* out) const {
-  out->assign(g.x.size(), static_cast<float>(options_.background));
-  const float bias2 = static_cast<float>(std::exp2(2.0 * options_.lod_bias));
-  for (std::size_t i = 0; i < g.x.size(); ++i) {
-    const int id = raster.id[i];
-    if (id < 0) continue;
-    const ShadingQuad& sq = raster.shading[static_cast<std::size_t>(id)];
-    const float x = g.x[i], y = g.y[i], w = raster.w[i];
-    const float z = 1.0f / w;
-    const float s = (sq.a[0] * x + sq.a[1] * y + sq.a[2]) * z - sq.a0;
-    const float t = (sq.b[0] * x + sq.b[1] * y + sq.b[2]) * z - sq.b0;
-    // Mip level from the sample footprint: texels per sample ~ z * lod_scale / sqrt(cos(incidence)) (a compromise
-    // between the two axes of the anisotropic footprint on oblique surfaces).
-    const float rn = std::sqrt(x * x + y * y + 1.0f);
-    const float cosi = std::max(0.05f, std::abs(sq.n[0] * x + sq.n[1] * y + sq.n[2]) / rn);
-    float f2 = z * z * sq.lod_scale * sq.lod_scale / cosi * bias2;
-    int level = 0;
-    const int max_level = sq.texture->levels() - 1;
-    while (f2 > 2.0f && level < max_level) {
-      f2 *= 0.25f;
-      ++level;
-    }
-    const cv::Mat& img = sq.texture->level(level);
-    (*out)[i] = sq.shade * sampleBilinear(img, s * static_cast<float>(img.cols) - 0.5f,
-                                          t * static_cast<float>(img.rows) - 0.5f);
-  }
-}
-
 cv::Mat Renderer::renderRadiance(const Scene& scene, const Pose& T_W_C) const {
+  // Adaptive anti-aliasing: rasterise the pixel centres; a pixel whose 4-neighbours all see the same quad is shaded
+  // once at its centre (the mip-mapped lookup filters the texture); a pixel on a geometric edge is split into
+  // ss x ss samples, each resolved against the quads seen in its 3x3 neighbourhood and shaded on its own.
   Raster raster;
-  rasterise(scene, T_W_C, grid_ss_, &raster);
-  std::vector<float> samples;
-  shade(grid_ss_, raster, &samples);
-  // Box filter of the ss x ss samples of every pixel.
+  rasterise(scene, T_W_C, grid_1_, &raster);
   const int ss = options_.supersample;
   const float inv = 1.0f / static_cast<float>(ss * ss);
+  const float lod_sub = 1.0f / static_cast<float>(ss * ss);  // footprint^2 of a sub-sample relative to a pixel
+  const float bias2 = static_cast<float>(std::exp2(2.0 * options_.lod_bias));
+  const float background = static_cast<float>(options_.background);
   cv::Mat out(height_, width_, CV_32FC1);
+  const auto& ids = raster.id;
+  std::array<int, 9> cand{};
   for (int r = 0; r < height_; ++r) {
     float* dst = out.ptr<float>(r);
     for (int c = 0; c < width_; ++c) {
-      float acc = 0.0f;
-      for (int dy = 0; dy < ss; ++dy) {
-        const float* src = &samples[static_cast<std::size_t>(r * ss + dy) * static_cast<std::size_t>(grid_ss_.cols) +
-                                    static_cast<std::size_t>(c * ss)];
-        for (int dx = 0; dx < ss; ++dx) acc += src[dx];
+      const std::size_t i = static_cast<std::size_t>(r * width_ + c);
+      const int id = ids[i];
+      const bool edge = ss > 1 && ((c > 0 && ids[i - 1] != id) || (c + 1 < width_ && ids[i + 1] != id) ||
+                                   (r > 0 && ids[i - static_cast<std::size_t>(width_)] != id) ||
+                                   (r + 1 < height_ && ids[i + static_cast<std::size_t>(width_)] != id));
+      if (!edge) {
+        dst[c] = id < 0 ? background
+                        : shadeSample(raster.shading[static_cast<std::size_t>(id)], grid_1_.x[i], grid_1_.y[i],
+                                      raster.w[i], bias2);
+        continue;
       }
+      int n_cand = 0;
+      for (int dr = -1; dr <= 1; ++dr)
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int rr = r + dr, cc = c + dc;
+          if (rr < 0 || cc < 0 || rr >= height_ || cc >= width_) continue;
+          const int q = ids[static_cast<std::size_t>(rr * width_ + cc)];
+          if (q < 0 || std::find(cand.begin(), cand.begin() + n_cand, q) != cand.begin() + n_cand) continue;
+          cand[static_cast<std::size_t>(n_cand++)] = q;
+        }
+      float acc = 0.0f;
+      for (int dy = 0; dy < ss; ++dy)
+        for (int dx = 0; dx < ss; ++dx) {
+          const std::size_t j = static_cast<std::size_t>(r * ss + dy) * static_cast<std::size_t>(grid_ss_.cols) +
+                                static_cast<std::size_t>(c * ss + dx);
+          const float x = grid_ss_.x[j], y = grid_ss_.y[j];
+          float best_w = 0.0f;
+          int best = -1;
+          for (int k = 0; k < n_cand; ++k) {
+            const PreparedQuad& pq = raster.prepared[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])];
+            bool in = true;
+            for (int e = 0; e < pq.n_edges && in; ++e) {
+              const float* E = &pq.edge[static_cast<std::size_t>(3 * e)];
+              in = E[0] * x + E[1] * y + E[2] >= 0.0f;
+            }
+            if (!in) continue;
+            const float w = pq.w[0] * x + pq.w[1] * y + pq.w[2];
+            if (w > best_w) {
+              best_w = w;
+              best = pq.index;
+            }
+          }
+          acc += best < 0 ? background
+                          : shadeSample(raster.shading[static_cast<std::size_t>(best)], x, y, best_w, bias2 * lod_sub);
+        }
       dst[c] = acc * inv;
     }
   }

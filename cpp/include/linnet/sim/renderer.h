@@ -4,7 +4,8 @@
 // ray once, at construction (the camera model's undistortion of the sample's pixel position). Planar quads stay
 // straight in normalised (undistorted) coordinates, so coverage is an exact convex-polygon test there, depth 1/z is
 // affine in (x, y), and texture coordinates follow from a per-quad homography. The result is the exact distorted
-// image (radtan or any CameraModel), anti-aliased by ss x ss supersampling and mip-mapped texture lookups.
+// image (radtan or any CameraModel), anti-aliased by mip-mapped texture lookups inside surfaces and by ss x ss
+// supersampling of the pixels on geometric edges (adaptive: only where neighbouring pixels see different quads).
 //
 // Photometry (applied after the box filter): radiance = texture * shade * gain * vignetting, then sensor noise
 // (read noise + shot noise), rounding to 8 bits. Everything is deterministic: the noise comes from a counter-based
@@ -86,7 +87,6 @@ class Renderer {
 
   static RayGrid makeGrid(const CameraModel& camera, int ss);
   void rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& grid, Raster* raster) const;
-  void shade(const RayGrid& grid, const Raster& raster, std::vector<float>* out) const;
 
   RenderOptions options_;
   int width_ = 0, height_ = 0;
