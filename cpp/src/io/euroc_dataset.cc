@@ -62,11 +62,11 @@ struct CameraStream {
   fs::path data_dir;
 };
 
-CameraStream readCameraStream(const fs::path& cam_dir, bool check_images) {
+CameraStream readCameraStream(const fs::path& cam_dir, bool check_images, int threads) {
   CameraStream s;
   const fs::path csv = cam_dir / "data.csv";
   s.calib = readCameraSensorYaml((cam_dir / "sensor.yaml").string());
-  s.rows = readCameraCsv(csv.string());
+  s.rows = readCameraCsv(csv.string(), threads);
   s.data_dir = cam_dir / "data";
   if (check_images) {
     std::error_code ec;
@@ -141,50 +141,44 @@ ImuNoise readImuSensorYaml(const std::string& path, Pose* T_B_S) {
   return n;
 }
 
-std::vector<CameraCsvRow> readCameraCsv(const std::string& path) {
-  io::TextFile file = io::TextFile::read(path);
-  std::vector<CameraCsvRow> rows;
-  rows.reserve(file.sizeBytes() / 44 + 1);
-  std::string_view line;
-  std::string_view f[2];
-  while (file.nextData(&line)) {
+std::vector<CameraCsvRow> readCameraCsv(const std::string& path, int max_threads) {
+  const io::TextFile file = io::TextFile::read(path);
+  auto parse = [](const io::TextLines& lines, std::string_view line) {
+    std::string_view f[2];
     const int n = io::splitFields(line, ',', f, 2);
-    if (n != 2) file.fail("expected 2 columns 'timestamp [ns],filename', got " + std::to_string(n));
+    if (n != 2) lines.fail("expected 2 columns 'timestamp [ns],filename', got " + std::to_string(n));
     CameraCsvRow r;
-    r.t = io::parseInt64Field(file, f[0], "timestamp [ns]");
-    if (f[1].empty()) file.fail("empty file name");
-    if (!rows.empty() && r.t <= rows.back().t)
-      file.fail("time stamp " + std::to_string(r.t) + " ns " + (r.t == rows.back().t ? "is duplicated" : "goes backwards") +
-                " (previous " + std::to_string(rows.back().t) + " ns on line " + std::to_string(rows.back().line) + ")");
+    r.t = io::parseInt64Field(lines, f[0], "timestamp [ns]");
+    if (f[1].empty()) lines.fail("empty file name");
     r.filename = std::string(f[1]);
-    r.line = file.line();
-    rows.push_back(std::move(r));
-  }
+    r.line = lines.line();
+    return r;
+  };
+  std::vector<CameraCsvRow> rows =
+      io::parseRows<CameraCsvRow>(file, io::parseThreads(file.sizeBytes(), max_threads), parse, 44);
+  io::checkStrictlyIncreasing(file, rows, [](const CameraCsvRow& r) { return r.t; });
   return rows;
 }
 
-std::vector<ImuSample> readImuCsv(const std::string& path) {
-  io::TextFile file = io::TextFile::read(path);
-  std::vector<ImuSample> samples;
-  samples.reserve(file.sizeBytes() / 120 + 1);
-  std::string_view line;
-  std::string_view f[7];
+std::vector<ImuSample> readImuCsv(const std::string& path, int max_threads) {
+  const io::TextFile file = io::TextFile::read(path);
   static const char* kNames[7] = {"timestamp [ns]", "w_RS_S_x", "w_RS_S_y", "w_RS_S_z", "a_RS_S_x", "a_RS_S_y",
                                   "a_RS_S_z"};
-  double v[6];
-  while (file.nextData(&line)) {
+  auto parse = [](const io::TextLines& lines, std::string_view line) {
+    std::string_view f[7];
     const int n = io::splitFields(line, ',', f, 7);
-    if (n != 7) file.fail("expected 7 columns 'timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z', got " + std::to_string(n));
+    if (n != 7) lines.fail("expected 7 columns 'timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z', got " + std::to_string(n));
     ImuSample s;
-    s.t = io::parseInt64Field(file, f[0], kNames[0]);
-    for (int i = 0; i < 6; ++i) v[i] = io::parseDoubleField(file, f[i + 1], kNames[i + 1]);
-    if (!samples.empty() && s.t <= samples.back().t)
-      file.fail("time stamp " + std::to_string(s.t) + " ns " + (s.t == samples.back().t ? "is duplicated" : "goes backwards") +
-                " (previous " + std::to_string(samples.back().t) + " ns)");
+    s.t = io::parseInt64Field(lines, f[0], kNames[0]);
+    double v[6];
+    for (int i = 0; i < 6; ++i) v[i] = io::parseDoubleField(lines, f[i + 1], kNames[i + 1]);
     s.gyr = Vec3(v[0], v[1], v[2]);
     s.acc = Vec3(v[3], v[4], v[5]);
-    samples.push_back(s);
-  }
+    return s;
+  };
+  std::vector<ImuSample> samples =
+      io::parseRows<ImuSample>(file, io::parseThreads(file.sizeBytes(), max_threads), parse, 120);
+  io::checkStrictlyIncreasing(file, samples, [](const ImuSample& s) { return s.t; });
   return samples;
 }
 
@@ -208,7 +202,7 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
   // IMU first: the body frame is the IMU frame.
   Pose T_B_I;
   d.imu_noise_ = readImuSensorYaml((mav0 / "imu0" / "sensor.yaml").string(), &T_B_I);
-  d.imu_ = readImuCsv((mav0 / "imu0" / "data.csv").string());
+  d.imu_ = readImuCsv((mav0 / "imu0" / "data.csv").string(), options.threads);
   if (d.imu_.empty()) io::failInput((mav0 / "imu0" / "data.csv").string(), 0, "no IMU samples");
   const Pose T_I_B = T_B_I.inverse();
   if (!isIdentity(T_B_I))
@@ -223,7 +217,7 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
   if (gaps > 0)
     d.warnings_.push_back("imu0: " + std::to_string(gaps) + " gaps longer than 3 sample periods");
 
-  CameraStream cam0 = readCameraStream(mav0 / "cam0", options.check_images);
+  CameraStream cam0 = readCameraStream(mav0 / "cam0", options.check_images, options.threads);
   d.cam0_ = cam0.calib;
   d.cam0_.T_B_C = T_I_B * d.cam0_.T_B_C;
   if (cam0.rows.empty()) io::failInput((mav0 / "cam0" / "data.csv").string(), 0, "no images listed");
@@ -233,7 +227,7 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
     d.frames_.reserve(cam0.rows.size());
     for (const auto& r : cam0.rows) d.frames_.push_back({r.t, (cam0.data_dir / r.filename).string(), ""});
   } else {
-    CameraStream cam1 = readCameraStream(mav0 / "cam1", options.check_images);
+    CameraStream cam1 = readCameraStream(mav0 / "cam1", options.check_images, options.threads);
     d.cam1_ = cam1.calib;
     d.cam1_.T_B_C = T_I_B * d.cam1_.T_B_C;
     d.has_cam1_ = true;
@@ -268,7 +262,7 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
 
   const fs::path gt_dir = mav0 / "state_groundtruth_estimate0";
   if (options.load_ground_truth && fs::exists(gt_dir / "data.csv", ec)) {
-    d.ground_truth_ = readEurocCsv((gt_dir / "data.csv").string());
+    d.ground_truth_ = readEurocCsv((gt_dir / "data.csv").string(), options.threads);
     Pose T_B_S;
     if (fs::exists(gt_dir / "sensor.yaml", ec)) {
       const std::string gt_yaml = (gt_dir / "sensor.yaml").string();

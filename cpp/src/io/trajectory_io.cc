@@ -32,19 +32,12 @@ void writeAll(const std::string& path, const std::string& text) {
 
 /// Quaternion from file values. Already-unit quaternions are kept bit for bit (exact round trips);
 /// others (files written with few digits) are normalised. A (near) zero quaternion is an error.
-Quat quaternionFromFile(const io::TextFile& file, double w, double x, double y, double z) {
+Quat quaternionFromFile(const io::TextLines& file, double w, double x, double y, double z) {
   Quat q(w, x, y, z);
   const double n2 = q.squaredNorm();
   if (!std::isfinite(n2) || n2 < 1e-12) file.fail("quaternion has zero norm or is not finite");
   if (std::fabs(n2 - 1.0) > 1e-14) q.normalize();
   return q;
-}
-
-void checkIncreasing(const io::TextFile& file, const std::vector<TrajectoryState>& states, Timestamp t) {
-  if (!states.empty() && t <= states.back().t) {
-    file.fail("time stamp " + std::to_string(t) + " ns does not increase (previous " +
-              std::to_string(states.back().t) + " ns)");
-  }
 }
 
 }  // namespace
@@ -112,63 +105,72 @@ void writeTrajectory(const std::string& path, const std::vector<TrajectoryState>
     writeTum(path, states);
 }
 
-std::vector<TrajectoryState> readTum(const std::string& path) {
-  io::TextFile file = io::TextFile::read(path);
-  std::vector<TrajectoryState> states;
-  std::string_view line;
-  std::string_view f[8];
+std::vector<TrajectoryState> readTum(const std::string& path, int max_threads) {
+  const io::TextFile file = io::TextFile::read(path);
   static const char* kNames[8] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
-  while (file.nextData(&line)) {
+  auto parse = [](const io::TextLines& lines, std::string_view line) {
+    std::string_view f[8];
     const int n = io::splitFields(line, ' ', f, 8);
-    if (n != 8) file.fail("expected 8 columns 't x y z qx qy qz qw', got " + std::to_string(n));
+    if (n != 8) lines.fail("expected 8 columns 't x y z qx qy qz qw', got " + std::to_string(n));
     TrajectoryState s;
-    if (!io::parseSecondsToNs(f[0], &s.t)) file.fail("column 'timestamp': expected seconds, got '" + std::string(f[0]) + "'");
+    if (!io::parseSecondsToNs(f[0], &s.t))
+      lines.fail("column 'timestamp': expected seconds, got '" + std::string(f[0]) + "'");
     double v[7];
-    for (int i = 0; i < 7; ++i) v[i] = io::parseDoubleField(file, f[i + 1], kNames[i + 1]);
-    checkIncreasing(file, states, s.t);
+    for (int i = 0; i < 7; ++i) v[i] = io::parseDoubleField(lines, f[i + 1], kNames[i + 1]);
     s.T_W_B.p = Vec3(v[0], v[1], v[2]);
-    s.T_W_B.q = quaternionFromFile(file, v[6], v[3], v[4], v[5]);
-    states.push_back(s);
-  }
+    s.T_W_B.q = quaternionFromFile(lines, v[6], v[3], v[4], v[5]);
+    return s;
+  };
+  std::vector<TrajectoryState> states =
+      io::parseRows<TrajectoryState>(file, io::parseThreads(file.sizeBytes(), max_threads), parse, 80);
+  io::checkStrictlyIncreasing(file, states, [](const TrajectoryState& s) { return s.t; });
   return states;
 }
 
-std::vector<TrajectoryState> readEurocCsv(const std::string& path) {
-  io::TextFile file = io::TextFile::read(path);
-  std::vector<TrajectoryState> states;
-  std::string_view line;
-  std::string_view f[17];
+std::vector<TrajectoryState> readEurocCsv(const std::string& path, int max_threads) {
+  const io::TextFile file = io::TextFile::read(path);
   static const char* kNames[17] = {"timestamp", "p_x", "p_y", "p_z", "q_w", "q_x", "q_y", "q_z", "v_x",
                                    "v_y",       "v_z", "b_w_x", "b_w_y", "b_w_z", "b_a_x", "b_a_y", "b_a_z"};
+  // The first data row fixes the column count (17 or 8); every row must have the same.
   int columns = 0;
-  while (file.nextData(&line)) {
-    const int n = io::splitFields(line, ',', f, 17);
-    if (columns == 0) {
-      if (n != 17 && n != 8) file.fail("expected 17 (t, p, q, v, b_w, b_a) or 8 (t, p, q) columns, got " + std::to_string(n));
-      columns = n;
-    } else if (n != columns) {
-      file.fail("expected " + std::to_string(columns) + " columns like the first row, got " + std::to_string(n));
+  {
+    io::TextLines lines = file.lines();
+    std::string_view line;
+    std::string_view f[17];
+    if (lines.nextData(&line)) {
+      columns = io::splitFields(line, ',', f, 17);
+      if (columns != 17 && columns != 8)
+        lines.fail("expected 17 (t, p, q, v, b_w, b_a) or 8 (t, p, q) columns, got " + std::to_string(columns));
     }
+  }
+  auto parse = [columns](const io::TextLines& lines, std::string_view line) {
+    std::string_view f[17];
+    const int n = io::splitFields(line, ',', f, 17);
+    if (n != columns)
+      lines.fail("expected " + std::to_string(columns) + " columns like the first row, got " + std::to_string(n));
     TrajectoryState s;
-    s.t = io::parseInt64Field(file, f[0], kNames[0]);
+    s.t = io::parseInt64Field(lines, f[0], kNames[0]);
     double v[16];
-    for (int i = 1; i < n; ++i) v[i - 1] = io::parseDoubleField(file, f[i], kNames[i]);
-    checkIncreasing(file, states, s.t);
+    for (int i = 1; i < n; ++i) v[i - 1] = io::parseDoubleField(lines, f[i], kNames[i]);
     s.T_W_B.p = Vec3(v[0], v[1], v[2]);
-    s.T_W_B.q = quaternionFromFile(file, v[3], v[4], v[5], v[6]);
+    s.T_W_B.q = quaternionFromFile(lines, v[3], v[4], v[5], v[6]);
     if (n == 17) {
       s.v_W = Vec3(v[7], v[8], v[9]);
       s.b_g = Vec3(v[10], v[11], v[12]);
       s.b_a = Vec3(v[13], v[14], v[15]);
       s.has_velocity_bias = true;
     }
-    states.push_back(s);
-  }
+    return s;
+  };
+  std::vector<TrajectoryState> states =
+      io::parseRows<TrajectoryState>(file, io::parseThreads(file.sizeBytes(), max_threads), parse, 150);
+  io::checkStrictlyIncreasing(file, states, [](const TrajectoryState& s) { return s.t; });
   return states;
 }
 
-std::vector<TrajectoryState> readTrajectory(const std::string& path) {
-  return trajectoryFormatFromPath(path) == TrajectoryFormat::kEurocCsv ? readEurocCsv(path) : readTum(path);
+std::vector<TrajectoryState> readTrajectory(const std::string& path, int max_threads) {
+  return trajectoryFormatFromPath(path) == TrajectoryFormat::kEurocCsv ? readEurocCsv(path, max_threads)
+                                                                        : readTum(path, max_threads);
 }
 
 TrajectoryFileWriter::TrajectoryFileWriter(const std::string& path, TrajectoryFormat format)

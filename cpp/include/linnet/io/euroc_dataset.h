@@ -42,12 +42,14 @@ struct EurocOpenOptions {
   bool use_cam1 = true;         // read cam1 when present (false: monocular)
   bool check_images = true;     // every listed image must exist on disk
   bool load_ground_truth = true;  // read state_groundtruth_estimate0 when present
+  int threads = 0;              // csv parsing threads for large files (0: all cores); the result does not depend on it
 
   template <class V>
   void visit(V& v) {
     v("use_cam1", use_cam1, "read cam1 when present (false: monocular)");
     v("check_images", check_images, "every image listed in data.csv must exist");
     v("load_ground_truth", load_ground_truth, "read state_groundtruth_estimate0 when present");
+    v("threads", threads, "csv parsing threads (0: all cores)", 0, 64);
   }
 };
 
@@ -104,9 +106,9 @@ struct CameraCsvRow {
   std::string filename;
   long line = 0;  // line in the csv (for messages)
 };
-std::vector<CameraCsvRow> readCameraCsv(const std::string& path);
+std::vector<CameraCsvRow> readCameraCsv(const std::string& path, int max_threads = 0);
 
 /// A EuRoC imu0 data.csv (7 columns, gyro first), strictly increasing in time.
-std::vector<ImuSample> readImuCsv(const std::string& path);
+std::vector<ImuSample> readImuCsv(const std::string& path, int max_threads = 0);
 
 }  // namespace linnet

@@ -48,10 +48,11 @@ const char* eurocCsvHeader();
 
 /// Reads a trajectory. Throws InputError "<file>:<line>: ..." on a missing file, a wrong column count, an
 /// unparsable number, a zero-norm quaternion or time stamps that do not strictly increase.
-std::vector<TrajectoryState> readTum(const std::string& path);
-std::vector<TrajectoryState> readEurocCsv(const std::string& path);  // 17 or 8 columns
+/// Large files are parsed on up to `max_threads` threads (0: all cores); the result does not depend on it.
+std::vector<TrajectoryState> readTum(const std::string& path, int max_threads = 0);
+std::vector<TrajectoryState> readEurocCsv(const std::string& path, int max_threads = 0);  // 17 or 8 columns
 /// By file name as trajectoryFormatFromPath().
-std::vector<TrajectoryState> readTrajectory(const std::string& path);
+std::vector<TrajectoryState> readTrajectory(const std::string& path, int max_threads = 0);
 
 /// Appends states to a file as they come (pipeline output). The file is created (truncated) on construction
 /// and flushed on close() / destruction; each write() is one line.
