@@ -17,8 +17,19 @@ class Error : public std::runtime_error {
 class InputError : public Error {
  public:
   explicit InputError(const std::string& what) : Error(what) {}
-  InputError(const std::string& file, long line, const std::string& what)
-      : Error(file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + what) {}
+  InputError(const std::string& file, long line, const std::string& what) : Error(locate(file, line, what)) {}
+
+ private:
+  static std::string locate(const std::string& file, long line, const std::string& what) {
+    std::string msg = file;
+    if (line > 0) {
+      msg += ':';
+      msg += std::to_string(line);
+    }
+    msg += ": ";
+    msg += what;
+    return msg;
+  }
 };
 
 /// Bad configuration: unknown key, wrong type, value out of range. The message names the key's full path.
