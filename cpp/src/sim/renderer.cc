@@ -108,7 +108,33 @@ struct Renderer::Raster {
   std::vector<int> id;               // quad index per sample (-1 = none)
   std::vector<ShadingQuad> shading;  // per quad of the scene (valid where some sample refers to it)
   std::vector<PreparedQuad> prepared;  // per quad of the scene (n_edges == 0: not visible)
+  std::vector<int> visible;            // indices of the prepared quads
 };
+
+namespace {
+/// The nearest of the quads `ids[0..n)` hit by ray (x, y, 1): returns its index (or -1) and its inverse depth.
+inline int nearestHit(const std::vector<PreparedQuad>& prepared, const int* ids, int n, float x, float y,
+                      float* w_out) {
+  float best_w = 0.0f;
+  int best = -1;
+  for (int k = 0; k < n; ++k) {
+    const PreparedQuad& pq = prepared[static_cast<std::size_t>(ids[k])];
+    bool in = true;
+    for (int e = 0; e < pq.n_edges && in; ++e) {
+      const float* E = &pq.edge[static_cast<std::size_t>(3 * e)];
+      in = E[0] * x + E[1] * y + E[2] >= 0.0f;
+    }
+    if (!in) continue;
+    const float w = pq.w[0] * x + pq.w[1] * y + pq.w[2];
+    if (w > best_w) {
+      best_w = w;
+      best = pq.index;
+    }
+  }
+  *w_out = best_w;
+  return best;
+}
+}  // namespace
 
 Renderer::Renderer(const CameraModel& camera, const RenderOptions& options) : options_(options) {
   validateOptions(options_, "render");
@@ -182,6 +208,7 @@ void Renderer::rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& g
   raster->id.assign(n, -1);
   raster->shading.assign(scene.quads().size(), ShadingQuad{});
   raster->prepared.assign(scene.quads().size(), PreparedQuad{});
+  raster->visible.clear();
   const Mat3 R_C_W = T_W_C.R().transpose();
   const Vec3 p_W_C = T_W_C.p;
   const auto& quads = scene.quads();
@@ -252,6 +279,7 @@ void Renderer::rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& g
     }
     pq.w = {static_cast<float>(wc.x()), static_cast<float>(wc.y()), static_cast<float>(wc.z())};
     raster->prepared[qi] = pq;
+    raster->visible.push_back(pq.index);
 
     for (int ty = 0; ty < g.tiles_y; ++ty)
       for (int tx = 0; tx < g.tiles_x; ++tx) {
@@ -339,21 +367,10 @@ cv::Mat Renderer::renderRadiance(const Scene& scene, const Pose& T_W_C) const {
                                 static_cast<std::size_t>(c * ss + dx);
           const float x = grid_ss_.x[j], y = grid_ss_.y[j];
           float best_w = 0.0f;
-          int best = -1;
-          for (int k = 0; k < n_cand; ++k) {
-            const PreparedQuad& pq = raster.prepared[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])];
-            bool in = true;
-            for (int e = 0; e < pq.n_edges && in; ++e) {
-              const float* E = &pq.edge[static_cast<std::size_t>(3 * e)];
-              in = E[0] * x + E[1] * y + E[2] >= 0.0f;
-            }
-            if (!in) continue;
-            const float w = pq.w[0] * x + pq.w[1] * y + pq.w[2];
-            if (w > best_w) {
-              best_w = w;
-              best = pq.index;
-            }
-          }
+          int best = nearestHit(raster.prepared, cand.data(), n_cand, x, y, &best_w);
+          if (best < 0 && !raster.visible.empty())  // a surface no neighbouring pixel centre sees (thin, oblique)
+            best = nearestHit(raster.prepared, raster.visible.data(), static_cast<int>(raster.visible.size()), x, y,
+                              &best_w);
           acc += best < 0 ? background
                           : shadeSample(raster.shading[static_cast<std::size_t>(best)], x, y, best_w, bias2 * lod_sub);
         }
