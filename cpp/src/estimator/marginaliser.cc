@@ -61,6 +61,46 @@ void applyLoss(const ceres::LossFunction& loss, Eigen::VectorXd* r, std::vector<
 
 }  // namespace
 
+std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockKey>& dropped,
+                                                        const std::vector<const Residual*>& used,
+                                                        int* num_decoupled) const {
+  // Structural coupling between dropped blocks: two are coupled when one residual touches both.
+  std::set<std::pair<BlockKey, BlockKey>> coupled;
+  const std::set<BlockKey> drop_set(dropped.begin(), dropped.end());
+  for (const Residual* res : used) {
+    std::vector<BlockKey> d;
+    for (BlockKey k : res->keys)
+      if (drop_set.count(k) != 0) d.push_back(k);
+    for (BlockKey a : d)
+      for (BlockKey b : d)
+        if (a != b) coupled.emplace(a, b);
+  }
+  // Greedy independent set, smallest blocks first (stable: ties keep the caller's order).
+  std::vector<BlockKey> by_size = dropped;
+  std::stable_sort(by_size.begin(), by_size.end(), [&](BlockKey a, BlockKey b) {
+    return blocks_.at(a).tangent_size < blocks_.at(b).tangent_size;
+  });
+  std::vector<BlockKey> first;
+  std::set<BlockKey> chosen;
+  for (BlockKey k : by_size) {
+    const bool free = std::none_of(chosen.begin(), chosen.end(),
+                                   [&](BlockKey c) { return coupled.count({k, c}) != 0; });
+    if (free) {
+      first.push_back(k);
+      chosen.insert(k);
+    }
+  }
+  // A single decoupled block gains nothing over the dense stage.
+  if (first.size() < 2) {
+    *num_decoupled = 0;
+    return dropped;
+  }
+  *num_decoupled = static_cast<int>(first.size());
+  for (BlockKey k : dropped)
+    if (chosen.count(k) == 0) first.push_back(k);
+  return first;
+}
+
 Marginaliser::Marginaliser(MarginaliserOptions options) : options_(options) {}
 
 void Marginaliser::addParameterBlock(BlockKey key, const double* values, int ambient_size,
@@ -130,6 +170,10 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
       if (drop_set.count(k) == 0 && !blocks_.at(k).constant) kept_set.insert(k);
   }
   if (used.empty()) return nullptr;
+  // Two-stage elimination: first a set of dropped blocks with no residual between any two of them (typically the
+  // inverse depths hosted by the dropped frame), whose H block is block-diagonal and cheap to invert; then the rest
+  // of the dropped blocks densely. In exact arithmetic this is the same Schur complement as one joint elimination.
+  dropped = orderForElimination(dropped, used, &stats_.decoupled_blocks);
   std::vector<BlockKey> kept(kept_set.begin(), kept_set.end());
   std::sort(kept.begin(), kept.end(),
             [&](BlockKey a, BlockKey b) { return blocks_.at(a).order < blocks_.at(b).order; });
@@ -203,13 +247,41 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   }
   H = 0.5 * (H + H.transpose());
 
-  // Schur complement: H* = H_rr - H_rm H_mm^+ H_mr, g* = g_r - H_rm H_mm^+ g_m.
-  int deficiency = 0;
-  const Eigen::MatrixXd Hmm_inv = symmetricPseudoInverse(H.topLeftCorner(m, m), options_.eigenvalue_threshold,
-                                                         &deficiency);
-  const Eigen::MatrixXd Hrm_Hmm_inv = H.bottomLeftCorner(n, m) * Hmm_inv;
-  Eigen::MatrixXd H_star = H.bottomRightCorner(n, n) - Hrm_Hmm_inv * H.topRightCorner(m, n);
-  const Eigen::VectorXd g_star = g.tail(n) - Hrm_Hmm_inv * g.head(m);
+  // Stage 1: the decoupled blocks (H_PP block-diagonal).
+  int deficiency = 0, m1 = 0;
+  std::vector<int> p_sizes;
+  for (int i = 0; i < stats_.decoupled_blocks; ++i) {
+    p_sizes.push_back(blocks_.at(dropped[static_cast<std::size_t>(i)]).tangent_size);
+    m1 += p_sizes.back();
+  }
+  if (m1 > 0) {
+    const int rest = total - m1;
+    Eigen::MatrixXd X(rest, m1);  // H_RP H_PP^+
+    Eigen::VectorXd y(m1);        // H_PP^+ g_P
+    for (int i = 0, o = 0; i < static_cast<int>(p_sizes.size()); o += p_sizes[static_cast<std::size_t>(i)], ++i) {
+      const int t = p_sizes[static_cast<std::size_t>(i)];
+      int def = 0;
+      const Eigen::MatrixXd inv = symmetricPseudoInverse(H.block(o, o, t, t), options_.eigenvalue_threshold, &def);
+      deficiency += def;
+      X.middleCols(o, t).noalias() = H.block(m1, o, rest, t) * inv;
+      y.segment(o, t).noalias() = inv * g.segment(o, t);
+    }
+    Eigen::MatrixXd H_rest = H.bottomRightCorner(rest, rest);
+    H_rest.noalias() -= X * H.topRightCorner(m1, rest);
+    Eigen::VectorXd g_rest = g.tail(rest);
+    g_rest.noalias() -= H.bottomLeftCorner(rest, m1) * y;
+    H = 0.5 * (H_rest + H_rest.transpose());
+    g = g_rest;
+  }
+  // Stage 2: H* = H_rr - H_rm H_mm^+ H_mr, g* = g_r - H_rm H_mm^+ g_m over the remaining dropped blocks.
+  const int m2 = m - m1;
+  int def2 = 0;
+  const Eigen::MatrixXd Hmm_inv = symmetricPseudoInverse(H.topLeftCorner(m2, m2), options_.eigenvalue_threshold,
+                                                         &def2);
+  deficiency += def2;
+  const Eigen::MatrixXd Hrm_Hmm_inv = H.bottomLeftCorner(n, m2) * Hmm_inv;
+  Eigen::MatrixXd H_star = H.bottomRightCorner(n, n) - Hrm_Hmm_inv * H.topRightCorner(m2, n);
+  const Eigen::VectorXd g_star = g.tail(n) - Hrm_Hmm_inv * g.head(m2);
   H_star = 0.5 * (H_star + H_star.transpose());
 
   stats_.residuals_used = static_cast<int>(used.size());

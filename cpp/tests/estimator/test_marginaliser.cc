@@ -154,6 +154,47 @@ TEST(Marginaliser, LinearGaussianMatchesBatchSolutionAndCovariance) {
   EXPECT_LT((cov_red - cov_full.bottomRightCorner(5, 5)).cwiseAbs().maxCoeff(), 1e-9);
 }
 
+TEST(Marginaliser, LandmarkHeavyDropMatchesBatch) {
+  // A dropped "frame" (6) hosting 30 dropped 1-D "inverse depths", each seen from two kept frames (6 each): the
+  // depths share no residual, so they go through the block-diagonal first stage.
+  std::mt19937 rng(24);
+  std::map<BlockKey, int> sizes = {{0, 6}, {1, 6}, {2, 6}};
+  std::vector<std::vector<BlockKey>> structure = {{0}, {0, 1}, {1, 2}, {2}};
+  std::vector<BlockKey> drop = {0};
+  for (BlockKey p = 100; p < 130; ++p) {
+    sizes[p] = 1;
+    structure.push_back({0, 1, p});
+    structure.push_back({0, 2, p});
+    drop.push_back(p);
+  }
+  const LinearProblem lp(rng, sizes, structure);
+  Marginaliser m;
+  for (const auto& [key, values] : lp.x_lin) m.addParameterBlock(key, values.data(), static_cast<int>(values.size()), nullptr);
+  std::vector<Term> rest;
+  for (const Term& t : lp.terms) {
+    if (touchesAny(t, drop)) {
+      m.addResidual(t.cost, nullptr, t.keys);
+    } else {
+      rest.push_back(t);
+    }
+  }
+  auto prior = m.marginalise(drop);
+  ASSERT_TRUE(prior);
+  EXPECT_EQ(m.lastStats().decoupled_blocks, 30);
+  EXPECT_EQ(m.lastStats().dropped_size, 36);
+  EXPECT_EQ(prior->keys, (std::vector<BlockKey>{1, 2}));
+
+  std::vector<BlockKey> all;
+  for (const auto& kv : sizes) all.push_back(kv.first);
+  Eigen::VectorXd x_full, x_red;
+  Eigen::MatrixXd cov_full, cov_red;
+  denseSolve(lp.terms, all, lp.x_lin, lp.sizes, &x_full, &cov_full);  // keys 0, 1, 2, 100.. in map order
+  rest.push_back({std::make_shared<PriorFactor>(prior), prior->keys});
+  denseSolve(rest, {1, 2}, lp.x_lin, lp.sizes, &x_red, &cov_red);
+  EXPECT_LT((x_red - x_full.segment(6, 12)).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT((cov_red - cov_full.block(6, 6, 12, 12)).cwiseAbs().maxCoeff(), 1e-9);
+}
+
 TEST(Marginaliser, RemarginalisingAPriorMatchesBatch) {
   std::mt19937 rng(22);
   // A chain 0-1-2-3-4 with a loop (1,3): marginalise 0, then 1 through the first prior.

@@ -9,6 +9,11 @@
 //   auto prior = m.marginalise({keys to drop});                              // -> PriorFactor(prior) in the next window
 // A previous prior is re-marginalised by adding std::make_shared<PriorFactor>(old_prior) with keys old_prior->keys.
 //
+// Elimination runs in two stages that give the same Schur complement: first the dropped blocks that share no residual
+// with one another (e.g. the inverse depths hosted by the dropped frame: H_PP is block-diagonal, inverted block by
+// block), then the remaining dropped blocks through a dense eigen-decomposition (pseudo-inverse with the threshold).
+// The result H* = V S V^T becomes J = sqrt(S) V^T, r = sqrt(S)^-1 V^T g* over the eigenvalues above the threshold.
+//
 // Robust losses: each residual is corrected as Ceres' own trust-region solver does (Triggs et al., "Bundle
 // adjustment - a modern synthesis", 2000, sec. 4.3): r' = sqrt(rho')/(1 - a) r, J' = sqrt(rho') (I - a r r^T/|r|^2) J
 // with a = 1 - sqrt(1 + 2 |r|^2 rho''/rho'); when rho'' <= 0 (Huber, Cauchy, ...) this is the plain sqrt(rho')
@@ -45,6 +50,7 @@ struct MarginalisationStats {
   int kept_size = 0;            // tangent dimension of the prior's blocks
   int prior_rank = 0;           // rows of the prior's J
   int dropped_rank_deficiency = 0;  // eigenvalues of H_mm below the threshold
+  int decoupled_blocks = 0;     // dropped blocks eliminated in the cheap block-diagonal first stage
 };
 
 class Marginaliser {
@@ -87,6 +93,10 @@ class Marginaliser {
     ceres::LossFunction* loss = nullptr;
     std::vector<BlockKey> keys;
   };
+
+  /// `dropped` reordered so that the first *num_decoupled blocks share no residual (block-diagonal H_PP).
+  std::vector<BlockKey> orderForElimination(const std::vector<BlockKey>& dropped,
+                                            const std::vector<const Residual*>& used, int* num_decoupled) const;
 
   MarginaliserOptions options_;
   std::map<BlockKey, Block> blocks_;
