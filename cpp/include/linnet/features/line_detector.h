@@ -1,0 +1,87 @@
+// Line segment detection: LSD (the thesis' detector), EDLines (OpenCV ximgproc EdgeDrawing) or FastLineDetector,
+// optionally on a downsampled image, followed by a sub-pixel refinement of every segment at full resolution.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/ximgproc.hpp>
+
+#include "linnet/features/line_types.h"
+
+namespace linnet {
+
+struct LineDetectorOptions {
+  std::string detector = "edlines";  // "edlines" (EDLines, Akinlar & Topal 2011) | "fld" | "lsd" (von Gioi et al. 2012)
+  int downsample = 2;                // detect on the image shrunk by this integer factor (1 = full resolution)
+  double lsd_scale = 0.8;            // LSD's own gaussian downsampling (thesis 3.1.1), used by "lsd" only
+  int edlines_gradient_threshold = 20;  // EDLines gradient threshold, grey levels
+  int edlines_anchor_threshold = 0;     // EDLines anchor threshold, grey levels
+  double edlines_sigma = 1.0;           // EDLines gaussian smoothing, pixels of the detection image
+  int fld_canny_low = 50;               // FastLineDetector Canny thresholds, grey levels
+  int fld_canny_high = 100;
+  double min_length_px = 30.0;       // shortest segment kept, full-resolution pixels
+  int max_segments = 150;            // the longest this many are kept per image
+  bool refine = true;                // sub-pixel refinement on the full-resolution image
+  int refine_search_px = 2;          // +- search across the segment, pixels
+  double refine_step_px = 3.0;       // spacing of refinement samples along the segment, pixels
+  int refine_max_samples = 24;       // refinement samples per segment (spread evenly when the segment is long)
+  double refine_min_gradient = 4.0;  // weakest edge response used by the refinement, grey levels per pixel
+
+  template <class V>
+  void visit(V& v) {
+    v.choice("detector", detector, "line detector", {"edlines", "fld", "lsd"});
+    v("downsample", downsample, "detection on the image shrunk by this factor", 1, 4);
+    v("lsd_scale", lsd_scale, "LSD gaussian downsampling factor", 0.1, 1.0);
+    v("edlines_gradient_threshold", edlines_gradient_threshold, "EDLines gradient threshold, grey levels", 1, 255);
+    v("edlines_anchor_threshold", edlines_anchor_threshold, "EDLines anchor threshold, grey levels", 0, 255);
+    v("edlines_sigma", edlines_sigma, "EDLines gaussian sigma, pixels", 0.0, 5.0);
+    v("fld_canny_low", fld_canny_low, "FLD Canny low threshold", 1, 1000);
+    v("fld_canny_high", fld_canny_high, "FLD Canny high threshold", 1, 1000);
+    v("min_length_px", min_length_px, "minimum segment length, pixels", 2.0, 10000.0);
+    v("max_segments", max_segments, "segments kept per image (longest first)", 1, 10000);
+    v("refine", refine, "sub-pixel refinement at full resolution");
+    v("refine_search_px", refine_search_px, "refinement search half-width, pixels", 1, 10);
+    v("refine_step_px", refine_step_px, "refinement sample spacing, pixels", 0.5, 50.0);
+    v("refine_max_samples", refine_max_samples, "refinement samples per segment", 3, 1024);
+    v("refine_min_gradient", refine_min_gradient, "weakest edge used by refinement, grey levels/pixel", 0.0, 255.0);
+  }
+};
+
+/// Detects segments in 8-bit grey images. Holds OpenCV detector objects and scratch buffers: one instance per thread.
+class LineDetector {
+ public:
+  /// Validates the options (ConfigError naming the key) and builds the OpenCV detector.
+  explicit LineDetector(const LineDetectorOptions& options);
+
+  /// Appends nothing and clears `segments` for an empty image; throws UsageError for a non-CV_8UC1 image.
+  /// Output: at most max_segments segments, longest first, oriented as LineSegment documents.
+  void detect(const cv::Mat& gray, std::vector<LineSegment>* segments) { detect(gray, segments, options_.refine); }
+  /// As above; refine = false only orients the segments (the caller may refine the ones it keeps).
+  void detect(const cv::Mat& gray, std::vector<LineSegment>* segments, bool refine);
+
+  const LineDetectorOptions& options() const { return options_; }
+
+ private:
+  void detectRaw(const cv::Mat& gray, std::vector<cv::Vec4f>* raw);
+
+  LineDetectorOptions options_;
+  cv::Ptr<cv::LineSegmentDetector> lsd_;
+  cv::Ptr<cv::ximgproc::FastLineDetector> fld_;
+  cv::Ptr<cv::ximgproc::EdgeDrawing> ed_;
+  cv::Mat small_;
+  std::vector<cv::Vec4f> raw_;
+};
+
+/// Sub-pixel refinement of one segment on a full-resolution 8-bit image: samples the directional derivative across
+/// the segment, locates the edge with a parabola fit, and fits a weighted total-least-squares line; endpoints are
+/// projected onto it. Also orients the segment by the sign of the gradient (see LineSegment). Returns false when too
+/// few samples respond (the segment is then left as it was, only oriented).
+/// Orients a segment by the mean sign of the gradient across it (see LineSegment); cheap (2 samples per position).
+void orientSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment);
+
+bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment);
+
+}  // namespace linnet

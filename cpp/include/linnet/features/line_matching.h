@@ -1,0 +1,91 @@
+// Line matching: temporal (previous frame -> current frame, descriptor + geometric gating + flow consistency) and
+// stereo (left -> right, descriptor + epipolar overlap of both endpoints with the calibrated extrinsics).
+#pragma once
+
+#include <vector>
+
+#include "linnet/core/pose.h"
+#include "linnet/features/line_types.h"
+
+namespace linnet {
+
+struct TemporalMatchOptions {
+  int max_hamming = 70;           // bits of 256
+  double ratio = 0.85;            // best / second-best Hamming distance must be below this
+  double max_angle_deg = 15.0;    // direction change between frames (same polarity), degrees
+  double max_shift_px = 80.0;     // midpoint motion, pixels
+  double min_overlap = 0.2;       // along-line overlap / shorter length after projection onto the previous line
+  bool reject_outliers = true;    // RANSAC of a 4-DoF similarity flow on the normal displacements
+  double outlier_px = 12.0;       // residual normal displacement to call a match an outlier, pixels
+  int ransac_iterations = 100;
+  int ransac_seed = 7;            // fixed seed: determinism
+
+  template <class V>
+  void visit(V& v) {
+    v("max_hamming", max_hamming, "descriptor distance, bits", 0, 256);
+    v("ratio", ratio, "best / second-best distance", 0.1, 1.0);
+    v("max_angle_deg", max_angle_deg, "direction change, degrees", 0.0, 90.0);
+    v("max_shift_px", max_shift_px, "midpoint motion, pixels", 1.0, 2000.0);
+    v("min_overlap", min_overlap, "along-line overlap ratio", 0.0, 1.0);
+    v("reject_outliers", reject_outliers, "similarity-flow RANSAC on normal displacements");
+    v("outlier_px", outlier_px, "outlier threshold, pixels", 0.5, 500.0);
+    v("ransac_iterations", ransac_iterations, "RANSAC iterations", 1, 100000);
+    v("ransac_seed", ransac_seed, "RANSAC random seed", 0, 1 << 30);
+  }
+};
+
+struct StereoMatchOptions {
+  int max_hamming = 70;                 // bits of 256
+  double ratio = 0.85;                  // best / second-best Hamming distance
+  double max_angle_deg = 15.0;          // direction difference left vs right (normalised coordinates), degrees
+  double min_epipolar_angle_deg = 4.0;  // lines closer to parallel with the epipolar lines are not matched, degrees
+  double min_overlap = 0.5;             // overlap of the left endpoints' epipolar span with the right segment
+  double min_depth_m = 0.2;             // triangulated endpoint depth range in cam0, metres
+  double max_depth_m = 60.0;
+
+  template <class V>
+  void visit(V& v) {
+    v("max_hamming", max_hamming, "descriptor distance, bits", 0, 256);
+    v("ratio", ratio, "best / second-best distance", 0.1, 1.0);
+    v("max_angle_deg", max_angle_deg, "direction difference, degrees", 0.0, 90.0);
+    v("min_epipolar_angle_deg", min_epipolar_angle_deg, "minimum angle to the epipolar lines, degrees", 0.0, 45.0);
+    v("min_overlap", min_overlap, "epipolar overlap ratio", 0.0, 1.0);
+    v("min_depth_m", min_depth_m, "minimum depth, metres", 0.0, 1000.0);
+    v("max_depth_m", max_depth_m, "maximum depth, metres", 0.01, 1e6);
+  }
+};
+
+/// A candidate pair (i in set A, j in set B) with its descriptor distance.
+struct LineMatchCandidate {
+  int i = 0, j = 0, distance = 0;
+};
+
+/// Mutual-best selection with a ratio test on A's side: (i, j) is kept when j is i's best and i is j's best, the
+/// distance is <= max_distance and below ratio * i's second-best distance. Ties go to the lower index (determinism).
+/// Fills match_of_a (size n_a, -1 = none) and returns the number of matches.
+int selectMutualBest(int n_a, int n_b, const std::vector<LineMatchCandidate>& candidates, int max_distance,
+                     double ratio, std::vector<int>* match_of_a);
+
+/// Previous -> current frame in pixels. match_of_cur[k] = index into prev, or -1. centre: the image centre (pixels),
+/// origin of the similarity flow. Returns the number of matches after outlier rejection.
+int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSegment>& prev,
+                  const std::vector<LbdDescriptor>& prev_desc, const std::vector<LineSegment>& cur,
+                  const std::vector<LbdDescriptor>& cur_desc, const Vec2& centre, std::vector<int>* match_of_cur);
+
+/// Epipolar test of a left / right pair in normalised coordinates. On success, *overlap is the overlap ratio and
+/// q_s, q_e (optional) the points of the right line corresponding to the left endpoints.
+bool stereoGeometryOk(const StereoMatchOptions& options, const Mat3& E, const Pose& T_C1_C0, const LineSegment& left,
+                      const LineSegment& right, double* overlap, Vec2* q_s = nullptr, Vec2* q_e = nullptr);
+
+/// Geometric stage of matchStereo: every (left i, right j) pair whose directions agree and that passes
+/// stereoGeometryOk; `distance` is left 0 for the caller to fill.
+void stereoCandidates(const StereoMatchOptions& options, const Pose& T_C1_C0, const std::vector<LineSegment>& left,
+                      const std::vector<LineSegment>& right, std::vector<LineMatchCandidate>* candidates);
+
+/// Left -> right in normalised (undistorted) coordinates. T_C1_C0 maps cam0 coordinates to cam1.
+/// match_of_left[k] = index into right, or -1. Returns the number of matches.
+int matchStereo(const StereoMatchOptions& options, const Pose& T_C1_C0, const std::vector<LineSegment>& left,
+                const std::vector<LbdDescriptor>& left_desc, const std::vector<LineSegment>& right,
+                const std::vector<LbdDescriptor>& right_desc, std::vector<int>* match_of_left);
+
+}  // namespace linnet

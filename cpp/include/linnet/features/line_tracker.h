@@ -1,0 +1,97 @@
+// The line front-end: per stereo (or mono) frame, detect -> merge -> describe -> match to the previous frame ->
+// replenish -> match left to right, delivering LineObservation's with stable ids (DESIGN A2, B1 "Line features").
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "linnet/camera/camera_model.h"
+#include "linnet/core/frame_observations.h"
+#include "linnet/core/pose.h"
+#include "linnet/features/line_detector.h"
+#include "linnet/features/line_lbd.h"
+#include "linnet/features/line_matching.h"
+#include "linnet/features/line_merge.h"
+#include "linnet/features/line_types.h"
+
+namespace linnet {
+
+struct LineTrackerOptions {
+  LineDetectorOptions detection;  // detection.detector selects "edlines" (default) | "fld" | "lsd"
+  LineMergeOptions merge;
+  LbdOptions lbd;
+  TemporalMatchOptions temporal;
+  StereoMatchOptions stereo;
+  int max_lines = 80;          // lines delivered per frame (tracked first, then new ones)
+  int grid_cols = 4;           // replenishment grid (cells of the image) for spatial spread
+  int grid_rows = 3;
+  int max_new_per_cell = 4;    // new lines started per grid cell and frame (by midpoint)
+  bool match_stereo = true;    // false: ignore the right image
+
+  template <class V>
+  void visit(V& v) {
+    v.section("detection", detection);
+    v.section("merge", merge);
+    v.section("lbd", lbd);
+    v.section("temporal", temporal);
+    v.section("stereo", stereo);
+    v("max_lines", max_lines, "lines per frame", 1, 10000);
+    v("grid_cols", grid_cols, "replenishment grid columns", 1, 64);
+    v("grid_rows", grid_rows, "replenishment grid rows", 1, 64);
+    v("max_new_per_cell", max_new_per_cell, "new lines per grid cell and frame", 1, 10000);
+    v("match_stereo", match_stereo, "match lines in the right image");
+  }
+};
+
+/// Tracks line segments over a stream of frames. Not thread-safe: one instance per stream; deterministic.
+class LineTracker {
+ public:
+  /// cam1 == nullptr: monocular. T_C1_C0 maps cam0 coordinates to cam1. The camera models must outlive the tracker.
+  /// Throws ConfigError (with the key) for invalid options.
+  LineTracker(const LineTrackerOptions& options, const CameraModel& cam0, const CameraModel* cam1,
+              const Pose& T_C1_C0);
+
+  /// 8-bit grey images (right empty for mono, or ignored when there is no cam1). Appends this frame's lines to
+  /// `lines`, sorted by id. Throws UsageError for a wrong image type or size, or time going backwards.
+  void track(Timestamp t, const cv::Mat& left, const cv::Mat& right, std::vector<LineObservation>* lines);
+
+  const LineFrameTimings& lastTimings() const { return timings_; }
+  const LineTrackerOptions& options() const { return options_; }
+
+  /// The current frame's segments (pixels) as delivered, parallel to the last output (for debugging views).
+  struct Track {
+    std::int64_t id = -1;
+    LineSegment px;        // left pixel endpoints
+    LbdDescriptor desc{};  // left descriptor
+    int length = 1;        // consecutive frames tracked
+  };
+  const std::vector<Track>& tracks() const { return tracks_; }
+
+ private:
+  void checkImage(const cv::Mat& img, const CameraModel& cam, const char* which) const;
+  // Detects (oriented, unrefined), merges; descriptors computed on the way are kept in descs / described.
+  void detectAndMerge(const cv::Mat& img, std::vector<LineSegment>* segs, std::vector<LbdDescriptor>* descs,
+                      std::vector<char>* described, LineFrameTimings* tm);
+  void refine(const cv::Mat& img, LineSegment* seg) const;
+  bool undistortSegment(const CameraModel& cam, const LineSegment& px, LineSegment* uv) const;
+
+  LineTrackerOptions options_;
+  const CameraModel& cam0_;
+  const CameraModel* cam1_;
+  Pose T_C1_C0_;
+  LineDetector detector_;
+  std::vector<Track> tracks_;
+  std::int64_t next_id_ = 0;
+  Timestamp last_t_ = 0;
+  bool has_last_ = false;
+  LineFrameTimings timings_;
+  // Scratch buffers reused across frames.
+  std::vector<LineSegment> segs_l_, segs_r_;
+  std::vector<LbdDescriptor> desc_l_, desc_r_;
+  std::vector<char> described_l_, described_r_;
+};
+
+}  // namespace linnet

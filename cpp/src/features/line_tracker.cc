@@ -1,0 +1,224 @@
+// The line front-end (see line_tracker.h).
+#include "linnet/features/line_tracker.h"
+
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+#include <string>
+
+#include "linnet/core/error.h"
+#include "linnet/core/options.h"
+
+namespace linnet {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+}  // namespace
+
+LineTracker::LineTracker(const LineTrackerOptions& options, const CameraModel& cam0, const CameraModel* cam1,
+                         const Pose& T_C1_C0)
+    : options_(options), cam0_(cam0), cam1_(cam1), T_C1_C0_(T_C1_C0), detector_(options.detection) {
+  validateOptions(options_, "lines");
+  if (options_.stereo.min_depth_m >= options_.stereo.max_depth_m)
+    throw ConfigError("config key 'lines.stereo.min_depth_m' must be below 'lines.stereo.max_depth_m'");
+  if (cam1_ != nullptr && T_C1_C0_.p.norm() < 1e-6)
+    throw ConfigError("LineTracker: stereo extrinsics T_C1_C0 have no baseline");
+}
+
+void LineTracker::checkImage(const cv::Mat& img, const CameraModel& cam, const char* which) const {
+  if (img.type() != CV_8UC1)
+    throw UsageError(std::string("LineTracker::track: ") + which + " image is not 8-bit grey (CV_8UC1)");
+  if (img.cols != cam.width() || img.rows != cam.height())
+    throw UsageError(std::string("LineTracker::track: ") + which + " image is " + std::to_string(img.cols) + "x" +
+                     std::to_string(img.rows) + ", the camera is " + std::to_string(cam.width()) + "x" +
+                     std::to_string(cam.height()));
+}
+
+void LineTracker::detectAndMerge(const cv::Mat& img, std::vector<LineSegment>* segs,
+                                 std::vector<LbdDescriptor>* descs, std::vector<char>* described,
+                                 LineFrameTimings* tm) {
+  auto t0 = Clock::now();
+  detector_.detect(img, segs, /*refine=*/false);  // refined lazily: only the segments delivered
+  tm->detect_ms += msSince(t0);
+  descs->clear();
+  described->clear();
+  t0 = Clock::now();
+  double describe_ms = 0.0;
+  const SegmentDescriber describe = [&](const LineSegment& seg) {
+    const auto td = Clock::now();
+    const LbdDescriptor d = binarizeLbd(computeLbdFloat(img, options_.lbd, seg));
+    describe_ms += msSince(td);
+    return d;
+  };
+  mergeSegments(options_.merge, describe, segs, descs, described);
+  tm->merge_ms += msSince(t0) - describe_ms;
+  tm->describe_ms += describe_ms;
+}
+
+void LineTracker::refine(const cv::Mat& img, LineSegment* seg) const {
+  if (options_.detection.refine) refineSegment(img, options_.detection, seg);
+}
+
+bool LineTracker::undistortSegment(const CameraModel& cam, const LineSegment& px, LineSegment* uv) const {
+  return cam.undistort(px.s, &uv->s) && cam.undistort(px.e, &uv->e) && (uv->e - uv->s).norm() > 1e-9;
+}
+
+void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, std::vector<LineObservation>* lines) {
+  const auto t_start = Clock::now();
+  if (has_last_ && t < last_t_)
+    throw UsageError("LineTracker::track: time stamp " + std::to_string(t) + " ns is before the previous " +
+                     std::to_string(last_t_) + " ns");
+  checkImage(left, cam0_, "left");
+  const bool stereo = options_.match_stereo && cam1_ != nullptr && !right.empty();
+  if (stereo) checkImage(right, *cam1_, "right");
+  LineFrameTimings tm;
+
+  // Left image: detect, merge, describe every segment (all are candidates for tracking or replenishment).
+  detectAndMerge(left, &segs_l_, &desc_l_, &described_l_, &tm);
+  tm.detected_left = static_cast<int>(segs_l_.size());
+  auto t0 = Clock::now();
+  for (std::size_t i = 0; i < segs_l_.size(); ++i)
+    if (!described_l_[i]) desc_l_[i] = binarizeLbd(computeLbdFloat(left, options_.lbd, segs_l_[i]));
+  tm.describe_ms += msSince(t0);
+
+  // Temporal matching against the lines delivered last frame.
+  t0 = Clock::now();
+  std::vector<LineSegment> prev_segs(tracks_.size());
+  std::vector<LbdDescriptor> prev_desc(tracks_.size());
+  for (std::size_t k = 0; k < tracks_.size(); ++k) {
+    prev_segs[k] = tracks_[k].px;
+    prev_desc[k] = tracks_[k].desc;
+  }
+  std::vector<int> match_of_cur;
+  const Vec2 centre(0.5 * (left.cols - 1), 0.5 * (left.rows - 1));
+  tm.tracked = matchTemporal(options_.temporal, prev_segs, prev_desc, segs_l_, desc_l_, centre, &match_of_cur);
+  std::vector<Track> next;
+  next.reserve(options_.max_lines);
+  std::vector<char> used(segs_l_.size(), 0);
+  for (std::size_t i = 0; i < segs_l_.size(); ++i) {
+    if (match_of_cur[i] < 0) continue;
+    const Track& old = tracks_[match_of_cur[i]];
+    next.push_back(Track{old.id, segs_l_[i], desc_l_[i], old.length + 1});
+    used[i] = 1;
+  }
+  // Keep the longest-lived tracks if more matched than max_lines (only when max_lines shrank).
+  if (static_cast<int>(next.size()) > options_.max_lines) {
+    std::stable_sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.length > b.length; });
+    next.resize(options_.max_lines);
+    tm.tracked = options_.max_lines;
+  }
+  // Replenishment: unmatched segments, longest first, spread over a grid.
+  const int gc = options_.grid_cols, gr = options_.grid_rows;
+  std::vector<int> cell_new(gc * gr, 0);
+  auto cellOf = [&](const LineSegment& s) {
+    const Vec2 m = s.midpoint();
+    const int cx = std::clamp(static_cast<int>(m.x() * gc / left.cols), 0, gc - 1);
+    const int cy = std::clamp(static_cast<int>(m.y() * gr / left.rows), 0, gr - 1);
+    return cy * gc + cx;
+  };
+  for (std::size_t i = 0; i < segs_l_.size() && static_cast<int>(next.size()) < options_.max_lines; ++i) {
+    if (used[i]) continue;
+    const int c = cellOf(segs_l_[i]);
+    if (cell_new[c] >= options_.max_new_per_cell) continue;
+    ++cell_new[c];
+    next.push_back(Track{next_id_++, segs_l_[i], desc_l_[i], 1});
+    ++tm.new_lines;
+  }
+  std::sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.id < b.id; });
+  tracks_.swap(next);
+  tm.temporal_ms = msSince(t0);
+  t0 = Clock::now();
+  for (Track& tr : tracks_) refine(left, &tr.px);
+  tm.detect_ms += msSince(t0);
+  tm.left_ms = msSince(t_start);
+
+  // Observations in cam0.
+  t0 = Clock::now();
+  std::vector<LineObservation> out;
+  out.reserve(tracks_.size());
+  std::vector<LineSegment> left_uv;
+  std::vector<LbdDescriptor> left_desc;
+  std::vector<int> out_of_left;
+  for (const Track& tr : tracks_) {
+    LineObservation ob;
+    LineSegment uv;
+    if (!undistortSegment(cam0_, tr.px, &uv)) continue;
+    ob.id = tr.id;
+    ob.ps0 = tr.px.s;
+    ob.pe0 = tr.px.e;
+    ob.s0 = uv.s;
+    ob.e0 = uv.e;
+    ob.track_length = tr.length;
+    out_of_left.push_back(static_cast<int>(out.size()));
+    left_uv.push_back(uv);
+    left_desc.push_back(tr.desc);
+    out.push_back(ob);
+  }
+  double stereo_undistort_ms = msSince(t0);
+
+  // Right image: detect, merge, then match left -> right; right descriptors only for geometric candidates.
+  if (stereo) {
+    detectAndMerge(right, &segs_r_, &desc_r_, &described_r_, &tm);
+    tm.detected_right = static_cast<int>(segs_r_.size());
+    t0 = Clock::now();
+    std::vector<LineSegment> right_uv;
+    std::vector<int> right_index;
+    for (std::size_t j = 0; j < segs_r_.size(); ++j) {
+      LineSegment uv;
+      if (!undistortSegment(*cam1_, segs_r_[j], &uv)) continue;
+      right_uv.push_back(uv);
+      right_index.push_back(static_cast<int>(j));
+    }
+    std::vector<LineMatchCandidate> cands;
+    stereoCandidates(options_.stereo, T_C1_C0_, left_uv, right_uv, &cands);
+    double describe_ms = 0.0;
+    for (LineMatchCandidate& c : cands) {
+      const int j = right_index[c.j];
+      if (!described_r_[j]) {
+        const auto td = Clock::now();
+        desc_r_[j] = binarizeLbd(computeLbdFloat(right, options_.lbd, segs_r_[j]));
+        described_r_[j] = 1;
+        describe_ms += msSince(td);
+      }
+      c.distance = hammingDistance(left_desc[c.i], desc_r_[j]);
+    }
+    std::vector<int> match_of_left;
+    selectMutualBest(static_cast<int>(left_uv.size()), static_cast<int>(right_uv.size()), cands,
+                     options_.stereo.max_hamming, options_.stereo.ratio, &match_of_left);
+    double refine_ms = 0.0;
+    for (std::size_t k = 0; k < match_of_left.size(); ++k) {
+      const int m = match_of_left[k];
+      if (m < 0) continue;
+      const auto tr = Clock::now();
+      LineSegment px = segs_r_[right_index[m]];
+      refine(right, &px);
+      LineSegment uv;
+      const bool ok = undistortSegment(*cam1_, px, &uv);
+      refine_ms += msSince(tr);
+      if (!ok) continue;
+      LineObservation& ob = out[out_of_left[k]];
+      ob.has_right = true;
+      ob.ps1 = px.s;
+      ob.pe1 = px.e;
+      ob.s1 = uv.s;
+      ob.e1 = uv.e;
+      ++tm.stereo_matched;
+    }
+    stereo_undistort_ms += msSince(t0) - describe_ms - refine_ms;
+    tm.describe_ms += describe_ms;
+    tm.detect_ms += refine_ms;
+  }
+  tm.stereo_ms = stereo_undistort_ms;
+  lines->insert(lines->end(), out.begin(), out.end());
+  last_t_ = t;
+  has_last_ = true;
+  tm.total_ms = msSince(t_start);
+  timings_ = tm;
+}
+
+}  // namespace linnet

@@ -1,0 +1,120 @@
+// Line detection: accuracy on a synthetic scene, orientation convention, degenerate images, option errors.
+#include <gtest/gtest.h>
+
+#include <chrono>
+
+#include "features/test_line_scene.h"
+#include "linnet/core/error.h"
+#include "linnet/features/line_detector.h"
+
+namespace linnet {
+namespace {
+
+PinholeCamera testCamera() { return PinholeCamera(752, 480, 450.0, 450.0, 375.5, 239.5); }
+
+class DetectorTest : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(DetectorTest, FindsSceneEdgesWithinTwoPixels) {
+  const PinholeCamera cam = testCamera();
+  const testing::LineScene scene = testing::makeScene();
+  const cv::Mat img = testing::renderScene(scene, cam, Pose(), 2.0, 1);
+  LineDetectorOptions opt;
+  opt.detector = GetParam();
+  if (opt.detector == "lsd") opt.downsample = 1;
+  LineDetector det(opt);
+  std::vector<LineSegment> segs;
+  det.detect(img, &segs);
+  ASSERT_GT(segs.size(), 10u);
+  const std::vector<LineSegment> edges = testing::projectEdges(scene, cam, Pose());
+  int on_edge = 0;
+  for (const LineSegment& s : segs) on_edge += testing::assignEdge(s, edges, 2.0) >= 0;
+  // Some detections are edges of occluded quads cut by nearer ones (they lie on the nearer quad's edge and are
+  // counted), a few are corners' stubs: most must lie on a true edge.
+  EXPECT_GE(on_edge, static_cast<int>(0.85 * segs.size())) << on_edge << " of " << segs.size();
+  for (const LineSegment& s : segs) EXPECT_GE(s.length(), opt.min_length_px - 1e-9);
+  for (std::size_t k = 1; k < segs.size(); ++k) EXPECT_GE(segs[k - 1].length(), segs[k].length());
+}
+
+INSTANTIATE_TEST_SUITE_P(AllDetectors, DetectorTest, ::testing::Values("edlines", "fld", "lsd"));
+
+TEST(LineDetector, RefinementIsSubPixelOnAStraightEdge) {
+  // A dark / bright step along the line y = b + a (x - 100), rendered by exact pixel-area coverage (each pixel
+  // integrates the step over its square, 8x8 supersampled), then blurred a little: the edge is exactly on the line.
+  const double a = 0.3, b = 200.0;
+  cv::Mat img(480, 752, CV_8UC1);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      double cover = 0.0;
+      for (int sy = 0; sy < 8; ++sy)
+        for (int sx = 0; sx < 8; ++sx) {
+          const double px = x - 0.5 + (sx + 0.5) / 8.0, py = y - 0.5 + (sy + 0.5) / 8.0;
+          cover += (py > b + a * (px - 100.0) && px > 100.0 && px < 600.0) ? 1.0 : 0.0;
+        }
+      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(60.0 + 130.0 * cover / 64.0);
+    }
+  cv::GaussianBlur(img, img, cv::Size(5, 5), 0.8);
+  LineDetector det(LineDetectorOptions{});
+  std::vector<LineSegment> segs;
+  det.detect(img, &segs);
+  ASSERT_FALSE(segs.empty());
+  const LineSegment& s = segs.front();
+  EXPECT_GT(s.length(), 400.0);
+  for (double t : {0.2, 0.5, 0.8}) {  // points along the segment
+    const Vec2 p = s.s + t * (s.e - s.s);
+    EXPECT_LT(std::abs((p - Vec2(100.0, b)).dot(Vec2(-a, 1.0).normalized())), 0.25) << "t = " << t;
+  }
+  const Vec2 n = Vec2(-a, 1.0).normalized();
+  for (const Vec2& p : {s.s, s.e}) {
+    if (p.x() < 110.0 || p.x() > 590.0) continue;  // endpoints near the step's ends sit on its corners
+    const double dist = (p - Vec2(100.0, b)).dot(n);
+    EXPECT_LT(std::abs(dist), 0.35) << "endpoint " << p.transpose();
+  }
+  // Bright below: walking s -> e, the gradient points along +n = (-d.y, d.x) (downwards here), so s is on the left.
+  EXPECT_LT(s.s.x(), s.e.x());
+  EXPECT_GT(s.normal().y(), 0.0);
+}
+
+TEST(LineDetector, DegenerateImagesNeitherCrashNorHang) {
+  cv::Mat black(480, 752, CV_8UC1, cv::Scalar(0)), white(480, 752, CV_8UC1, cv::Scalar(255));
+  cv::Mat noise(480, 752, CV_8UC1);
+  cv::RNG rng(5);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  for (const std::string name : {"edlines", "fld", "lsd"}) {
+    LineDetectorOptions opt;
+    opt.detector = name;
+    LineDetector det(opt);
+    std::vector<LineSegment> segs;
+    det.detect(black, &segs);
+    EXPECT_TRUE(segs.empty()) << name;
+    det.detect(white, &segs);
+    EXPECT_TRUE(segs.empty()) << name;
+    const auto t0 = std::chrono::steady_clock::now();
+    det.detect(noise, &segs);
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0) << name;
+    EXPECT_LE(static_cast<int>(segs.size()), opt.max_segments);
+    det.detect(cv::Mat(), &segs);
+    EXPECT_TRUE(segs.empty());
+    det.detect(cv::Mat(3, 3, CV_8UC1, cv::Scalar(7)), &segs);  // tiny
+    EXPECT_TRUE(segs.empty());
+  }
+}
+
+TEST(LineDetector, RejectsWrongImagesAndOptions) {
+  LineDetector det(LineDetectorOptions{});
+  std::vector<LineSegment> segs;
+  EXPECT_THROW(det.detect(cv::Mat(10, 10, CV_8UC3), &segs), UsageError);
+  LineDetectorOptions bad;
+  bad.detector = "hough";
+  try {
+    LineDetector d(bad);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("lines.detector.detector"), std::string::npos) << e.what();
+  }
+  LineDetectorOptions bad2;
+  bad2.min_length_px = -1;
+  EXPECT_THROW(LineDetector d(bad2), ConfigError);
+}
+
+}  // namespace
+}  // namespace linnet
