@@ -56,12 +56,14 @@ void YamlOptionsReader::finish() const {
   for (auto it = node_.begin(); it != node_.end(); ++it) {
     const YAML::Node k = it->first;
     if (!k.IsScalar()) {
-      throw ConfigError(yaml::where(source_, k) + ": " + (prefix_.empty() ? "top level" : "in '" + prefix_ + "'") +
+      throw ConfigError(yaml::where(source_, k) + ": " +
+                        (prefix_.empty() ? "top level" : "in '" + prefix_ + "'") +
                         ": keys must be plain names, got " + yaml::describe(k));
     }
     const std::string name = k.Scalar();
     const std::string full = prefix_.empty() ? name : prefix_ + "." + name;
-    if (!seen.insert(name).second) throw ConfigError(yaml::where(source_, k) + ": duplicate key '" + full + "'");
+    if (!seen.insert(name).second)
+      throw ConfigError(yaml::where(source_, k) + ": duplicate key '" + full + "'");
     if (std::find(known_.begin(), known_.end(), name) != known_.end()) continue;
     std::string msg = yaml::where(source_, k) + ": unknown key '" + full + "'";
     const std::string guess = yaml::closestName(name, known_);

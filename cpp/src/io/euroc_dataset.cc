@@ -26,7 +26,8 @@ YAML::Node requireKey(const YAML::Node& root, const std::string& file, const cha
 
 YAML::Node loadSensorYaml(const std::string& path) {
   const YAML::Node root = loadYamlFile(path);
-  if (!root.IsMap()) io::failInput(path, 0, "expected a map of sensor parameters, got " + yaml::describe(root));
+  if (!root.IsMap())
+    io::failInput(path, 0, "expected a map of sensor parameters, got " + yaml::describe(root));
   return root;
 }
 
@@ -52,7 +53,8 @@ bool isIdentity(const Pose& T, double tol = 1e-9) {
 std::unordered_set<std::string> listFileNames(const fs::path& dir) {
   std::unordered_set<std::string> names;
   std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) names.insert(it->path().filename().string());
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+    names.insert(it->path().filename().string());
   return names;
 }
 
@@ -76,7 +78,8 @@ CameraStream readCameraStream(const fs::path& cam_dir, bool check_images, int th
     for (const CameraCsvRow& r : s.rows) {
       const bool plain = r.filename.find('/') == std::string::npos;
       const bool found = plain ? names.count(r.filename) > 0 : fs::exists(s.data_dir / r.filename, ec);
-      if (!found) io::failInput(csv.string(), r.line, "image not found on disk: " + (s.data_dir / r.filename).string());
+      if (!found)
+        io::failInput(csv.string(), r.line, "image not found on disk: " + (s.data_dir / r.filename).string());
     }
   }
   return s;
@@ -91,17 +94,20 @@ CameraCalibration readCameraSensorYaml(const std::string& path) {
   c.rate_hz = readPositive(root, path, "rate_hz");
   const auto res = readValue<std::array<int, 2>>(root, path, "resolution");
   if (res[0] <= 0 || res[1] <= 0)
-    yaml::Context{path, "resolution", true}.fail(root["resolution"], "must be two positive integers [width, height]");
+    yaml::Context{path, "resolution", true}.fail(root["resolution"],
+                                                 "must be two positive integers [width, height]");
   c.width = res[0];
   c.height = res[1];
   c.model = readValue<std::string>(root, path, "camera_model");
   if (c.model != "pinhole")
-    yaml::Context{path, "camera_model", true}.fail(root["camera_model"], "= '" + c.model + "' is not supported (pinhole)");
+    yaml::Context{path, "camera_model", true}.fail(root["camera_model"],
+                                                   "= '" + c.model + "' is not supported (pinhole)");
   c.intrinsics = readValue<std::array<double, 4>>(root, path, "intrinsics");
   for (int i = 0; i < 4; ++i) {
     const double x = c.intrinsics[static_cast<std::size_t>(i)];
     if (!std::isfinite(x) || (i < 2 && x <= 0.0))
-      yaml::Context{path, "intrinsics", true}.fail(root["intrinsics"], "must be [fx, fy, cx, cy] with fx, fy > 0");
+      yaml::Context{path, "intrinsics", true}.fail(root["intrinsics"],
+                                                   "must be [fx, fy, cx, cy] with fx, fy > 0");
   }
   const std::string dist = readValue<std::string>(root, path, "distortion_model");
   std::size_t expected = 4;
@@ -114,15 +120,16 @@ CameraCalibration readCameraSensorYaml(const std::string& path) {
     expected = 0;
   } else {
     yaml::Context{path, "distortion_model", true}.fail(
-        root["distortion_model"], "= '" + dist + "' is not supported (radial-tangential | radtan | equidistant | none)");
+        root["distortion_model"],
+        "= '" + dist + "' is not supported (radial-tangential | radtan | equidistant | none)");
   }
   c.distortion_coeffs = expected == 0 && !root["distortion_coefficients"]
                             ? std::vector<double>{}
                             : readValue<std::vector<double>>(root, path, "distortion_coefficients");
   if (c.distortion_coeffs.size() != expected)
     yaml::Context{path, "distortion_coefficients", true}.fail(
-        root["distortion_coefficients"], "must hold " + std::to_string(expected) + " values for '" + dist + "', got " +
-                                             std::to_string(c.distortion_coeffs.size()));
+        root["distortion_coefficients"], "must hold " + std::to_string(expected) + " values for '" + dist +
+                                             "', got " + std::to_string(c.distortion_coeffs.size()));
   return c;
 }
 
@@ -162,12 +169,13 @@ std::vector<CameraCsvRow> readCameraCsv(const std::string& path, int max_threads
 
 std::vector<ImuSample> readImuCsv(const std::string& path, int max_threads) {
   const io::TextFile file = io::TextFile::read(path);
-  static const char* kNames[7] = {"timestamp [ns]", "w_RS_S_x", "w_RS_S_y", "w_RS_S_z", "a_RS_S_x", "a_RS_S_y",
-                                  "a_RS_S_z"};
+  static const char* kNames[7] = {"timestamp [ns]", "w_RS_S_x", "w_RS_S_y", "w_RS_S_z",
+                                  "a_RS_S_x",       "a_RS_S_y", "a_RS_S_z"};
   auto parse = [](const io::TextLines& lines, std::string_view line) {
     std::string_view f[7];
     const int n = io::splitFields(line, ',', f, 7);
-    if (n != 7) lines.fail("expected 7 columns 'timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z', got " + std::to_string(n));
+    if (n != 7)
+      lines.fail("expected 7 columns 'timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z', got " + std::to_string(n));
     ImuSample s;
     s.t = io::parseInt64Field(lines, f[0], kNames[0]);
     double v[6];
@@ -186,14 +194,17 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
   std::error_code ec;
   const fs::path p(path);
   if (!fs::exists(p, ec)) io::failInput(path, 0, "dataset folder not found");
-  if (!fs::is_directory(p, ec)) io::failInput(path, 0, "is not a folder (expected a EuRoC folder holding mav0/)");
+  if (!fs::is_directory(p, ec))
+    io::failInput(path, 0, "is not a folder (expected a EuRoC folder holding mav0/)");
   fs::path mav0;
   if (fs::is_directory(p / "mav0", ec)) {
     mav0 = p / "mav0";
   } else if (fs::is_directory(p / "cam0", ec)) {
     mav0 = p;
   } else {
-    io::failInput(path, 0, "no mav0/ folder (expected the EuRoC ASL layout " + (p / "mav0" / "cam0" / "data.csv").string() + ")");
+    io::failInput(path, 0,
+                  "no mav0/ folder (expected the EuRoC ASL layout " +
+                      (p / "mav0" / "cam0" / "data.csv").string() + ")");
   }
 
   EurocDataset d;
@@ -214,8 +225,7 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
       if (static_cast<double>(d.imu_[i].t - d.imu_[i - 1].t) > max_dt_ns) ++count;
     return count;
   }();
-  if (gaps > 0)
-    d.warnings_.push_back("imu0: " + std::to_string(gaps) + " gaps longer than 3 sample periods");
+  if (gaps > 0) d.warnings_.push_back("imu0: " + std::to_string(gaps) + " gaps longer than 3 sample periods");
 
   CameraStream cam0 = readCameraStream(mav0 / "cam0", options.check_images, options.threads);
   d.cam0_ = cam0.calib;
@@ -252,10 +262,12 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
     only1 += cam1.rows.size() - j;
     if (only0 + only1 > 0)
       d.warnings_.push_back("cam0/cam1: dropped " + std::to_string(only0 + only1) +
-                            " frames without a partner at the same time stamp (cam0 " + std::to_string(only0) +
-                            ", cam1 " + std::to_string(only1) + ")");
+                            " frames without a partner at the same time stamp (cam0 " +
+                            std::to_string(only0) + ", cam1 " + std::to_string(only1) + ")");
     if (d.frames_.empty())
-      io::failInput(d.mav0_, 0, "cam0 and cam1 share no time stamp: no stereo frame (open with use_cam1 = false for mono)");
+      io::failInput(
+          d.mav0_, 0,
+          "cam0 and cam1 share no time stamp: no stereo frame (open with use_cam1 = false for mono)");
   }
   if (d.frames_.front().t < d.imu_.front().t || d.frames_.back().t > d.imu_.back().t)
     d.warnings_.push_back("images extend beyond the IMU log (first/last image outside the IMU time span)");
@@ -273,8 +285,9 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
     const Pose T_S_I = T_B_S.inverse() * T_B_I;
     if (!isIdentity(T_S_I)) {
       for (auto& g : d.ground_truth_) g.T_W_B = g.T_W_B * T_S_I;
-      d.warnings_.push_back("ground truth re-expressed in the IMU frame (poses only; velocities are of the tracked "
-                            "sensor)");
+      d.warnings_.push_back(
+          "ground truth re-expressed in the IMU frame (poses only; velocities are of the tracked "
+          "sensor)");
     }
   }
   return d;
@@ -293,15 +306,18 @@ double EurocDataset::durationSeconds() const {
 }
 
 std::pair<std::size_t, std::size_t> EurocDataset::imuRange(Timestamp t0, Timestamp t1) const {
-  const auto lo = std::lower_bound(imu_.begin(), imu_.end(), t0, [](const ImuSample& s, Timestamp t) { return s.t < t; });
-  const auto hi = std::upper_bound(lo, imu_.end(), t1, [](Timestamp t, const ImuSample& s) { return t < s.t; });
+  const auto lo =
+      std::lower_bound(imu_.begin(), imu_.end(), t0, [](const ImuSample& s, Timestamp t) { return s.t < t; });
+  const auto hi =
+      std::upper_bound(lo, imu_.end(), t1, [](Timestamp t, const ImuSample& s) { return t < s.t; });
   return {static_cast<std::size_t>(lo - imu_.begin()), static_cast<std::size_t>(hi - imu_.begin())};
 }
 
 bool EurocDataset::groundTruthAt(Timestamp t, GroundTruthState* state, Timestamp max_gap_ns) const {
   const auto& g = ground_truth_;
   if (g.empty() || t < g.front().t || t > g.back().t) return false;
-  const auto it = std::lower_bound(g.begin(), g.end(), t, [](const GroundTruthState& s, Timestamp x) { return s.t < x; });
+  const auto it =
+      std::lower_bound(g.begin(), g.end(), t, [](const GroundTruthState& s, Timestamp x) { return s.t < x; });
   if (it->t == t) {
     *state = *it;
     return true;

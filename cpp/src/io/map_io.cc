@@ -47,7 +47,8 @@ void writePly(const std::string& path, const MapGeometry& map, const Rgb& defaul
   text += "property double x\nproperty double y\nproperty double z\n";
   if (colored) text += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   if (!map.segments.empty())
-    text += "element edge " + std::to_string(map.segments.size()) + "\nproperty int vertex1\nproperty int vertex2\n";
+    text += "element edge " + std::to_string(map.segments.size()) +
+            "\nproperty int vertex1\nproperty int vertex2\n";
   text += "end_header\n";
   text.reserve(text.size() + n_vertices * 64 + map.segments.size() * 16);
   for (std::size_t i = 0; i < map.points.size(); ++i) {
@@ -156,13 +157,16 @@ MapGeometry readPly(const std::string& path) {
     if (e.name == "vertex" && (ix < 0 || iy < 0 || iz < 0)) lines.fail("vertex element without x, y, z");
     if (e.name == "edge" && (i1 < 0 || i2 < 0)) lines.fail("edge element without vertex1, vertex2");
     for (long k = 0; k < e.count; ++k) {
-      if (!lines.next(&line)) lines.fail("file ends inside element '" + e.name + "' (" + std::to_string(k) + " of " +
-                                         std::to_string(e.count) + " rows)");
+      if (!lines.next(&line))
+        lines.fail("file ends inside element '" + e.name + "' (" + std::to_string(k) + " of " +
+                   std::to_string(e.count) + " rows)");
       const int n = io::splitFields(line, ' ', f, 16);
       if (n != np)
-        lines.fail("element '" + e.name + "' row has " + std::to_string(n) + " values, expected " + std::to_string(np));
+        lines.fail("element '" + e.name + "' row has " + std::to_string(n) + " values, expected " +
+                   std::to_string(np));
       if (e.name == "vertex") {
-        vertices.emplace_back(io::parseDoubleField(lines, f[ix], "x"), io::parseDoubleField(lines, f[iy], "y"),
+        vertices.emplace_back(io::parseDoubleField(lines, f[ix], "x"),
+                              io::parseDoubleField(lines, f[iy], "y"),
                               io::parseDoubleField(lines, f[iz], "z"));
         if (ir >= 0 && ig >= 0 && ib >= 0) {
           Rgb c{};
@@ -187,7 +191,8 @@ MapGeometry readPly(const std::string& path) {
 
   MapGeometry map;
   std::vector<bool> used(vertices.size(), false);
-  for (const auto& [a, b] : edges) used[static_cast<std::size_t>(a)] = used[static_cast<std::size_t>(b)] = true;
+  for (const auto& [a, b] : edges)
+    used[static_cast<std::size_t>(a)] = used[static_cast<std::size_t>(b)] = true;
   const bool has_colors = !colors.empty();
   for (std::size_t i = 0; i < vertices.size(); ++i) {
     if (used[i]) continue;

@@ -25,7 +25,6 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-
 }  // namespace
 
 void failInput(const std::string& file, long line, const std::string& what) {
@@ -41,7 +40,11 @@ TextFile::~TextFile() {
 }
 
 TextFile::TextFile(TextFile&& o) noexcept
-    : path_(std::move(o.path_)), owned_(std::move(o.owned_)), data_(o.data_), size_(o.size_), map_(o.map_),
+    : path_(std::move(o.path_)),
+      owned_(std::move(o.owned_)),
+      data_(o.data_),
+      size_(o.size_),
+      map_(o.map_),
       map_size_(o.map_size_) {
   if (!map_) data_ = owned_.data();
   o.map_ = nullptr;
@@ -73,10 +76,11 @@ TextFile TextFile::read(const std::string& path) {
   file.path_ = path;
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) failInput(path, 0, "cannot open file for reading");
-  struct stat st {};
+  struct stat st{};
   if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
     // Map the page cache directly: no copy, no zero-filled buffer.
-    void* m = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+    void* m =
+        ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
     if (m != MAP_FAILED) {
       ::close(fd);
       file.map_ = m;
@@ -116,7 +120,8 @@ std::vector<TextLines> TextFile::split(int n) const {
   std::size_t begin = 0;
   long first_line = 1;
   for (int k = 0; k < n && begin < t.size(); ++k) {
-    std::size_t end = k + 1 == n ? t.size() : t.size() / static_cast<std::size_t>(n) * static_cast<std::size_t>(k + 1);
+    std::size_t end =
+        k + 1 == n ? t.size() : t.size() / static_cast<std::size_t>(n) * static_cast<std::size_t>(k + 1);
     if (end < begin) end = begin;
     if (end < t.size()) {
       const std::size_t nl = t.find('\n', end);
@@ -140,8 +145,9 @@ long TextFile::lineOfDataRow(std::size_t index) const {
 
 void failTimeOrder(const TextFile& file, std::size_t index, Timestamp t, Timestamp previous) {
   failInput(file.path(), file.lineOfDataRow(index),
-            "time stamp " + std::to_string(t) + " ns " + (t == previous ? "is duplicated" : "goes backwards") +
-                " (previous row " + std::to_string(previous) + " ns)");
+            "time stamp " + std::to_string(t) + " ns " +
+                (t == previous ? "is duplicated" : "goes backwards") + " (previous row " +
+                std::to_string(previous) + " ns)");
 }
 
 int parseThreads(std::size_t bytes, int max_threads) {
@@ -194,7 +200,8 @@ int splitFields(std::string_view line, char sep, std::string_view* fields, int m
   std::size_t start = 0;
   while (true) {
     const std::size_t end = line.find(sep, start);
-    const std::string_view f = trim(line.substr(start, end == std::string_view::npos ? line.npos : end - start));
+    const std::string_view f =
+        trim(line.substr(start, end == std::string_view::npos ? line.npos : end - start));
     if (count < max_fields) fields[count] = f;
     if (++count > max_fields) return count;
     if (end == std::string_view::npos) break;
@@ -211,12 +218,14 @@ bool parseInt64(std::string_view s, std::int64_t* value) {
 }
 
 /// Clinger's fast path (W. D. Clinger, "How to read floating point numbers accurately", PLDI 1990): a decimal
-/// with an integer mantissa m <= 2^53 and a power of ten 10^e with |e| <= 22 is m * 10^e or m / 10^-e, both exact
-/// doubles, so one IEEE operation gives the correctly rounded result, the same as std::from_chars.
-/// Returns false when the text is not of the plain form [-]digits[.digits][e[+-]digits] or out of the fast range.
+/// with an integer mantissa m <= 2^53 and a power of ten 10^e with |e| <= 22 is m * 10^e or m / 10^-e, both
+/// exact doubles, so one IEEE operation gives the correctly rounded result, the same as std::from_chars.
+/// Returns false when the text is not of the plain form [-]digits[.digits][e[+-]digits] or out of the fast
+/// range.
 bool parseDoubleFast(std::string_view s, double* value) {
-  static constexpr double kPow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
-                                        1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+  static constexpr double kPow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+                                        1e8,  1e9,  1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+                                        1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
   std::size_t i = 0;
   const bool negative = i < s.size() && s[i] == '-';
   if (negative) ++i;
@@ -318,7 +327,8 @@ bool parseSecondsToNs(std::string_view s, Timestamp* t_ns) {
 std::string formatSeconds(Timestamp t_ns) {
   const bool negative = t_ns < 0;
   // Work on the magnitude as unsigned to handle INT64_MIN.
-  const std::uint64_t mag = negative ? 0ULL - static_cast<std::uint64_t>(t_ns) : static_cast<std::uint64_t>(t_ns);
+  const std::uint64_t mag =
+      negative ? 0ULL - static_cast<std::uint64_t>(t_ns) : static_cast<std::uint64_t>(t_ns);
   char buf[48];
   std::snprintf(buf, sizeof(buf), "%s%llu.%09llu", negative ? "-" : "",
                 static_cast<unsigned long long>(mag / 1'000'000'000ULL),
@@ -336,13 +346,15 @@ std::string formatDouble(double x) {
 
 std::int64_t parseInt64Field(const TextLines& file, std::string_view s, const char* column) {
   std::int64_t v = 0;
-  if (!parseInt64(s, &v)) file.fail("column '" + std::string(column) + "': expected an integer, got '" + std::string(s) + "'");
+  if (!parseInt64(s, &v))
+    file.fail("column '" + std::string(column) + "': expected an integer, got '" + std::string(s) + "'");
   return v;
 }
 
 double parseDoubleField(const TextLines& file, std::string_view s, const char* column) {
   double v = 0.0;
-  if (!parseDouble(s, &v)) file.fail("column '" + std::string(column) + "': expected a number, got '" + std::string(s) + "'");
+  if (!parseDouble(s, &v))
+    file.fail("column '" + std::string(column) + "': expected a number, got '" + std::string(s) + "'");
   return v;
 }
 

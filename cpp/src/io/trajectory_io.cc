@@ -12,9 +12,7 @@ namespace {
 
 using io::formatDouble;
 
-void appendNumber(std::string* out, double x) {
-  out->append(formatDouble(x));
-}
+void appendNumber(std::string* out, double x) { out->append(formatDouble(x)); }
 
 std::FILE* openForWriting(const std::string& path) {
   std::FILE* f = std::fopen(path.c_str(), "wb");
@@ -98,7 +96,8 @@ void writeEurocCsv(const std::string& path, const std::vector<TrajectoryState>& 
   writeAll(path, text);
 }
 
-void writeTrajectory(const std::string& path, const std::vector<TrajectoryState>& states, TrajectoryFormat format) {
+void writeTrajectory(const std::string& path, const std::vector<TrajectoryState>& states,
+                     TrajectoryFormat format) {
   if (format == TrajectoryFormat::kEurocCsv)
     writeEurocCsv(path, states);
   else
@@ -129,8 +128,9 @@ std::vector<TrajectoryState> readTum(const std::string& path, int max_threads) {
 
 std::vector<TrajectoryState> readEurocCsv(const std::string& path, int max_threads) {
   const io::TextFile file = io::TextFile::read(path);
-  static const char* kNames[17] = {"timestamp", "p_x", "p_y", "p_z", "q_w", "q_x", "q_y", "q_z", "v_x",
-                                   "v_y",       "v_z", "b_w_x", "b_w_y", "b_w_z", "b_a_x", "b_a_y", "b_a_z"};
+  static const char* kNames[17] = {"timestamp", "p_x",   "p_y",   "p_z",   "q_w",  "q_x",
+                                   "q_y",       "q_z",   "v_x",   "v_y",   "v_z",  "b_w_x",
+                                   "b_w_y",     "b_w_z", "b_a_x", "b_a_y", "b_a_z"};
   // The first data row fixes the column count (17 or 8); every row must have the same.
   int columns = 0;
   {
@@ -140,14 +140,16 @@ std::vector<TrajectoryState> readEurocCsv(const std::string& path, int max_threa
     if (lines.nextData(&line)) {
       columns = io::splitFields(line, ',', f, 17);
       if (columns != 17 && columns != 8)
-        lines.fail("expected 17 (t, p, q, v, b_w, b_a) or 8 (t, p, q) columns, got " + std::to_string(columns));
+        lines.fail("expected 17 (t, p, q, v, b_w, b_a) or 8 (t, p, q) columns, got " +
+                   std::to_string(columns));
     }
   }
   auto parse = [columns](const io::TextLines& lines, std::string_view line) {
     std::string_view f[17];
     const int n = io::splitFields(line, ',', f, 17);
     if (n != columns)
-      lines.fail("expected " + std::to_string(columns) + " columns like the first row, got " + std::to_string(n));
+      lines.fail("expected " + std::to_string(columns) + " columns like the first row, got " +
+                 std::to_string(n));
     TrajectoryState s;
     s.t = io::parseInt64Field(lines, f[0], kNames[0]);
     double v[16];
@@ -170,7 +172,7 @@ std::vector<TrajectoryState> readEurocCsv(const std::string& path, int max_threa
 
 std::vector<TrajectoryState> readTrajectory(const std::string& path, int max_threads) {
   return trajectoryFormatFromPath(path) == TrajectoryFormat::kEurocCsv ? readEurocCsv(path, max_threads)
-                                                                        : readTum(path, max_threads);
+                                                                       : readTum(path, max_threads);
 }
 
 TrajectoryFileWriter::TrajectoryFileWriter(const std::string& path, TrajectoryFormat format)
@@ -178,7 +180,8 @@ TrajectoryFileWriter::TrajectoryFileWriter(const std::string& path, TrajectoryFo
   if (format_ == TrajectoryFormat::kEurocCsv) {
     std::fputs(eurocCsvHeader(), file_.get());
   } else {
-    std::fputs("# timestamp[s] tx ty tz qx qy qz qw (T_W_B: body in world, Hamilton quaternion)", file_.get());
+    std::fputs("# timestamp[s] tx ty tz qx qy qz qw (T_W_B: body in world, Hamilton quaternion)",
+               file_.get());
   }
   std::fputc('\n', file_.get());
 }

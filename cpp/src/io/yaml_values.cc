@@ -67,8 +67,8 @@ std::string describe(const YAML::Node& node) {
 bool stringNeedsQuotes(const std::string& s) {
   if (s.empty()) return true;
   const std::string l = lower(s);
-  static const char* kSpecial[] = {"~", "null", "true", "false", "yes", "no", "on", "off", "y", "n",
-                                   ".inf", "-.inf", "+.inf", ".nan"};
+  static const char* kSpecial[] = {"~",   "null", "true", "false", "yes",   "no",    "on",
+                                   "off", "y",    "n",    ".inf",  "-.inf", "+.inf", ".nan"};
   for (const char* w : kSpecial)
     if (l == w) return true;
   double d = 0.0;
@@ -130,12 +130,15 @@ std::vector<double> decodeMatrixData(const YAML::Node& n, const Context& ctx, in
     const YAML::Node d = n["data"];
     if (!d) ctx.fail(n, "is a matrix map without 'data'");
     if (!d.IsSequence()) ctx.child("data").fail(d, "expects a list of numbers, got " + describe(d));
-    if (const YAML::Node r = n["rows"]) got_rows = static_cast<int>(decodeInteger(r, ctx.child("rows"), 1, 1 << 20));
-    if (const YAML::Node c = n["cols"]) got_cols = static_cast<int>(decodeInteger(c, ctx.child("cols"), 1, 1 << 20));
-    for (std::size_t i = 0; i < d.size(); ++i) data.push_back(decodeReal(d[i], ctx.child("data." + std::to_string(i))));
+    if (const YAML::Node r = n["rows"])
+      got_rows = static_cast<int>(decodeInteger(r, ctx.child("rows"), 1, 1 << 20));
+    if (const YAML::Node c = n["cols"])
+      got_cols = static_cast<int>(decodeInteger(c, ctx.child("cols"), 1, 1 << 20));
+    for (std::size_t i = 0; i < d.size(); ++i)
+      data.push_back(decodeReal(d[i], ctx.child("data." + std::to_string(i))));
     if (got_rows > 0 && got_cols > 0 && static_cast<std::size_t>(got_rows * got_cols) != data.size())
-      ctx.fail(n, "has rows*cols = " + std::to_string(got_rows * got_cols) + " but " + std::to_string(data.size()) +
-                      " data values");
+      ctx.fail(n, "has rows*cols = " + std::to_string(got_rows * got_cols) + " but " +
+                      std::to_string(data.size()) + " data values");
   } else if (n.IsSequence() && n.size() > 0 && n[0].IsSequence()) {
     got_rows = static_cast<int>(n.size());
     for (std::size_t r = 0; r < n.size(); ++r) {
@@ -154,7 +157,8 @@ std::vector<double> decodeMatrixData(const YAML::Node& n, const Context& ctx, in
   if (rows > 0 && cols > 0) {
     const std::string shape = std::to_string(rows) + "x" + std::to_string(cols);
     if ((got_rows > 0 && got_rows != rows) || (got_cols > 0 && got_cols != cols))
-      ctx.fail(n, "expects a " + shape + " matrix, got " + std::to_string(got_rows) + "x" + std::to_string(got_cols));
+      ctx.fail(n, "expects a " + shape + " matrix, got " + std::to_string(got_rows) + "x" +
+                      std::to_string(got_cols));
     if (data.size() != static_cast<std::size_t>(rows * cols))
       ctx.fail(n, "expects a " + shape + " matrix (" + std::to_string(rows * cols) + " numbers), got " +
                       std::to_string(data.size()) + " numbers");

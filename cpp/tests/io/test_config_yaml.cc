@@ -15,8 +15,8 @@ namespace linnet {
 namespace {
 
 struct KltOptions {
-  int levels = 3;                // pyramid levels
-  double max_error_px = 1.5;     // forward-backward check, pixels
+  int levels = 3;                  // pyramid levels
+  double max_error_px = 1.5;       // forward-backward check, pixels
   Eigen::Vector2i window{21, 21};  // pixels
   template <class V>
   void visit(V& v) {
@@ -27,9 +27,9 @@ struct KltOptions {
 };
 
 struct PointOptions {
-  int max_points = 150;                    // features per frame
-  std::string detector = "fast";           // "fast" | "shi_tomasi"
-  bool equalize = true;                    // CLAHE before tracking
+  int max_points = 150;           // features per frame
+  std::string detector = "fast";  // "fast" | "shi_tomasi"
+  bool equalize = true;           // CLAHE before tracking
   KltOptions klt;
   template <class V>
   void visit(V& v) {
@@ -41,15 +41,15 @@ struct PointOptions {
 };
 
 struct EstimatorOptions {
-  int window_size = 10;                          // keyframes
-  double huber_px = 1.0;                         // pixels
-  std::vector<double> weights{0.2, 0.8};         // point, line
+  int window_size = 10;                            // keyframes
+  double huber_px = 1.0;                           // pixels
+  std::vector<double> weights{0.2, 0.8};           // point, line
   std::array<double, 3> gravity{0.0, 0.0, -9.81};  // m/s^2
-  Mat3 info = Mat3::Identity();                  // information matrix
-  Pose T_B_C;                                    // camera in body
-  std::string name = "window";                   // free text
-  float scale = 0.1f;                            // unitless
-  std::int64_t max_gap_ns = 50'000'000;          // ns
+  Mat3 info = Mat3::Identity();                    // information matrix
+  Pose T_B_C;                                      // camera in body
+  std::string name = "window";                     // free text
+  float scale = 0.1f;                              // unitless
+  std::int64_t max_gap_ns = 50'000'000;            // ns
   template <class V>
   void visit(V& v) {
     v("window_size", window_size, "sliding-window keyframes", 2, 50);
@@ -95,8 +95,10 @@ std::filesystem::path tempDir(const std::string& name) {
 
 TEST(ConfigYaml, MissingKeysKeepDefaultsPresentKeysOverride) {
   RootOptions o;
-  loadOptions(YAML::Load("points:\n  max_points: 300\n  klt:\n    window: [15, 11]\nestimator:\n  gravity: [0, 0, -9.8]\n"),
-              o, "config.yaml");
+  loadOptions(
+      YAML::Load(
+          "points:\n  max_points: 300\n  klt:\n    window: [15, 11]\nestimator:\n  gravity: [0, 0, -9.8]\n"),
+      o, "config.yaml");
   EXPECT_EQ(o.points.max_points, 300);
   EXPECT_EQ(o.points.detector, "fast");
   EXPECT_EQ(o.points.klt.levels, 3);
@@ -113,7 +115,8 @@ TEST(ConfigYaml, EmptyDocumentChangesNothing) {
 
 TEST(ConfigYaml, PoseFromListAndKalibrMap) {
   RootOptions o;
-  loadOptions(YAML::Load("estimator:\n  T_B_C: [0, -1, 0, 1,  1, 0, 0, 2,  0, 0, 1, 3,  0, 0, 0, 1]\n"), o, "c.yaml");
+  loadOptions(YAML::Load("estimator:\n  T_B_C: [0, -1, 0, 1,  1, 0, 0, 2,  0, 0, 1, 3,  0, 0, 0, 1]\n"), o,
+              "c.yaml");
   EXPECT_NEAR((o.estimator.T_B_C * Vec3(1, 0, 0) - Vec3(1, 3, 3)).norm(), 0.0, 1e-15);
   RootOptions k;
   loadOptions(YAML::Load("estimator:\n  T_B_C:\n    cols: 4\n    rows: 4\n"
@@ -202,13 +205,16 @@ TEST(ConfigYaml, WrongTypesAreReported) {
   EXPECT_NE(errorOf("points:\n  max_points: 1.5\n").find("expects an integer, got '1.5'"), std::string::npos);
   EXPECT_NE(errorOf("points:\n  equalize: maybe\n").find("key 'points.equalize' expects true or false"),
             std::string::npos);
-  EXPECT_NE(errorOf("rate_hz: [1, 2]\n").find("key 'rate_hz' expects a number, got a list"), std::string::npos);
+  EXPECT_NE(errorOf("rate_hz: [1, 2]\n").find("key 'rate_hz' expects a number, got a list"),
+            std::string::npos);
   EXPECT_NE(errorOf("estimator:\n  gravity: [0, 0]\n").find("expects a list of 3 values, got a list of 2"),
             std::string::npos);
-  EXPECT_NE(errorOf("estimator:\n  weights: [0.1, x]\n").find("key 'estimator.weights.1' expects a number, got 'x'"),
+  EXPECT_NE(errorOf("estimator:\n  weights: [0.1, x]\n")
+                .find("key 'estimator.weights.1' expects a number, got 'x'"),
             std::string::npos);
-  EXPECT_NE(errorOf("estimator:\n  info: [1, 2, 3]\n").find("expects a 3x3 matrix (9 numbers), got 3 numbers"),
-            std::string::npos);
+  EXPECT_NE(
+      errorOf("estimator:\n  info: [1, 2, 3]\n").find("expects a 3x3 matrix (9 numbers), got 3 numbers"),
+      std::string::npos);
   EXPECT_NE(errorOf("estimator:\n  T_B_C: [2, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]\n")
                 .find("key 'estimator.T_B_C' is not a rigid transform"),
             std::string::npos);
@@ -216,8 +222,9 @@ TEST(ConfigYaml, WrongTypesAreReported) {
             std::string::npos);
   EXPECT_NE(errorOf("points: 3\n").find("config.yaml:1: key 'points' must be a map of options, got '3'"),
             std::string::npos);
-  EXPECT_NE(errorOf("points:\n  klt:\n    levels: 100000000000\n").find("does not fit the field's integer type"),
-            std::string::npos);
+  EXPECT_NE(
+      errorOf("points:\n  klt:\n    levels: 100000000000\n").find("does not fit the field's integer type"),
+      std::string::npos);
 }
 
 TEST(ConfigYaml, BadChoiceListsAllowedValues) {

@@ -222,7 +222,8 @@ TEST(EurocDataset, TruncatedCsvLineNamesFileAndLine) {
   const fs::path root2 = makeSmallCopy("bad_number");
   replaceInFile(root2 / "mav0" / "imu0" / "data.csv", "9.0874956666666655", "9.08x");
   const std::string msg2 = openError(root2);
-  EXPECT_NE(msg2.find("imu0/data.csv:2: column 'a_RS_S_x': expected a number, got '9.08x'"), std::string::npos)
+  EXPECT_NE(msg2.find("imu0/data.csv:2: column 'a_RS_S_x': expected a number, got '9.08x'"),
+            std::string::npos)
       << msg2;
 }
 
@@ -231,12 +232,14 @@ TEST(EurocDataset, NonMonotonicAndDuplicatedTimeStamps) {
   const fs::path root = makeSmallCopy("backwards");
   replaceInFile(root / "mav0" / "cam0" / "data.csv", "1403715273362142976,", "1403715273212142976,");
   const std::string msg = openError(root);
-  EXPECT_NE(msg.find("cam0/data.csv:4: time stamp 1403715273212142976 ns goes backwards"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("cam0/data.csv:4: time stamp 1403715273212142976 ns goes backwards"), std::string::npos)
+      << msg;
 
   const fs::path root2 = makeSmallCopy("duplicate");
   replaceInFile(root2 / "mav0" / "imu0" / "data.csv", "1403715273267142912,", "1403715273262142976,");
   const std::string msg2 = openError(root2);
-  EXPECT_NE(msg2.find("imu0/data.csv:3: time stamp 1403715273262142976 ns is duplicated"), std::string::npos) << msg2;
+  EXPECT_NE(msg2.find("imu0/data.csv:3: time stamp 1403715273262142976 ns is duplicated"), std::string::npos)
+      << msg2;
 
   const fs::path root3 = makeSmallCopy("gt_backwards");
   replaceInFile(root3 / "mav0" / "state_groundtruth_estimate0" / "data.csv", "1403715273312143104,",
@@ -269,7 +272,9 @@ TEST(EurocDataset, BadOrIncompleteSensorYaml) {
   const fs::path root4 = makeSmallCopy("bad_tbs");
   replaceInFile(root4 / "mav0" / "cam0" / "sensor.yaml", "0.0, 0.0, 0.0, 1.0]", "0.0, 0.0, 1.0]");
   const std::string msg4 = openError(root4);
-  EXPECT_NE(msg4.find("cam0/sensor.yaml:8: key 'T_BS' has rows*cols = 16 but 15 data values"), std::string::npos) << msg4;
+  EXPECT_NE(msg4.find("cam0/sensor.yaml:8: key 'T_BS' has rows*cols = 16 but 15 data values"),
+            std::string::npos)
+      << msg4;
 
   const fs::path root5 = makeSmallCopy("bad_distortion");
   replaceInFile(root5 / "mav0" / "cam0" / "sensor.yaml", "radial-tangential", "fov");

@@ -1,4 +1,5 @@
-// Text parsing helpers: number parsing agrees with std::from_chars, exact seconds <-> ns, line numbers in chunks.
+// Text parsing helpers: number parsing agrees with std::from_chars, exact seconds <-> ns, line numbers in
+// chunks.
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -52,9 +53,11 @@ TEST(TextParse, ParseDoubleMatchesFromCharsBitForBit) {
 TEST(TextParse, RejectsMalformedNumbers) {
   double v = 0.0;
   std::int64_t i = 0;
-  for (const char* bad : {"", "-", ".", "1.2.3", "1e", "1e+", "abc", "1,5", "0x10", " 1", "1 ", "--1", "1e400"})
+  for (const char* bad :
+       {"", "-", ".", "1.2.3", "1e", "1e+", "abc", "1,5", "0x10", " 1", "1 ", "--1", "1e400"})
     EXPECT_FALSE(parseDouble(bad, &v)) << bad;
-  for (const char* bad : {"", "1.0", "1e3", "x", "99999999999999999999", "+"}) EXPECT_FALSE(parseInt64(bad, &i)) << bad;
+  for (const char* bad : {"", "1.0", "1e3", "x", "99999999999999999999", "+"})
+    EXPECT_FALSE(parseInt64(bad, &i)) << bad;
   EXPECT_TRUE(parseDouble("+2.5", &v));
   EXPECT_EQ(v, 2.5);
   EXPECT_TRUE(parseDouble("-0", &v));
@@ -82,7 +85,8 @@ TEST(TextParse, SecondsAndNanosecondsConvertExactly) {
   EXPECT_EQ(t, -1500000000);
   ASSERT_TRUE(parseSecondsToNs("1.4037152732621430e9", &t));
   EXPECT_NEAR(static_cast<double>(t), 1403715273262143000.0, 512.0);
-  for (const char* bad : {"", ".", "1.2.3", "1.x", "abc", "--1"}) EXPECT_FALSE(parseSecondsToNs(bad, &t)) << bad;
+  for (const char* bad : {"", ".", "1.2.3", "1.x", "abc", "--1"})
+    EXPECT_FALSE(parseSecondsToNs(bad, &t)) << bad;
   for (Timestamp x : {Timestamp{0}, Timestamp{1}, Timestamp{-7}, Timestamp{1403715273262142976}}) {
     ASSERT_TRUE(parseSecondsToNs(formatSeconds(x), &t));
     EXPECT_EQ(t, x);
@@ -102,7 +106,8 @@ TEST(TextParse, SplitFields) {
 
 TEST(TextParse, ChunkedParsingKeepsOrderAndLineNumbersForAnyThreadCount) {
   std::string text = "# header\r\n";
-  for (int i = 0; i < 50000; ++i) text += std::to_string(i) + "," + std::to_string(i * 0.5) + (i % 7 ? "\n" : "\r\n");
+  for (int i = 0; i < 50000; ++i)
+    text += std::to_string(i) + "," + std::to_string(i * 0.5) + (i % 7 ? "\n" : "\r\n");
   const TextFile file = TextFile::fromString(text, "mem.csv");
   auto parse = [](const TextLines& lines, std::string_view line) {
     std::string_view f[2];

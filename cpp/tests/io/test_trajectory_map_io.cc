@@ -122,10 +122,12 @@ TEST(TrajectoryIo, StreamingWriterMatchesWholeFileWriter) {
 
 TEST(TrajectoryIo, ReadsTheSharedGroundTruthFiles) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const auto official = readTum((testing::eurocMicroDir() / "extras" / "V1_01_easy_original_gt_200hz_tum.txt").string());
+  const auto official =
+      readTum((testing::eurocMicroDir() / "extras" / "V1_01_easy_original_gt_200hz_tum.txt").string());
   EXPECT_EQ(official.size(), 28712u);
   EXPECT_EQ(official.front().t / 1'000'000, 1403715274302);  // starts 1.04 s after the first image
-  const auto v2g_tum = readTum((testing::eurocMicroDir() / "extras" / "V1_01_easy_vicon2gt_20hz_tum.txt").string());
+  const auto v2g_tum =
+      readTum((testing::eurocMicroDir() / "extras" / "V1_01_easy_vicon2gt_20hz_tum.txt").string());
   const auto v2g_csv =
       readEurocCsv((testing::eurocMicroDir() / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
   ASSERT_EQ(v2g_tum.size(), v2g_csv.size());
@@ -135,7 +137,8 @@ TEST(TrajectoryIo, ReadsTheSharedGroundTruthFiles) {
     EXPECT_NEAR(v2g_tum[i].T_W_B.q.angularDistance(v2g_csv[i].T_W_B.q), 0.0, 1e-5);
   }
   // Reading with one thread or many gives the same states.
-  const auto one = readTum((testing::eurocMicroDir() / "extras" / "V1_01_easy_original_gt_200hz_tum.txt").string(), 1);
+  const auto one =
+      readTum((testing::eurocMicroDir() / "extras" / "V1_01_easy_original_gt_200hz_tum.txt").string(), 1);
   ASSERT_EQ(one.size(), official.size());
   for (std::size_t i = 0; i < one.size(); ++i) ASSERT_EQ(one[i].T_W_B.p, official[i].T_W_B.p);
 }
@@ -151,15 +154,17 @@ TEST(TrajectoryIo, ErrorsNameFileAndLine) {
   EXPECT_EQ(readError(write("num.tum", "1.0 0 0 0 0 0 0 1\n2.0 0 y 0 0 0 0 1\n")),
             (dir / "num.tum").string() + ":2: column 'ty': expected a number, got 'y'");
   EXPECT_EQ(readError(write("time.tum", "1.0 0 0 0 0 0 0 1\n\n0.5 0 0 0 0 0 0 1\n")),
-            (dir / "time.tum").string() + ":3: time stamp 500000000 ns goes backwards (previous row 1000000000 ns)");
+            (dir / "time.tum").string() +
+                ":3: time stamp 500000000 ns goes backwards (previous row 1000000000 ns)");
   EXPECT_EQ(readError(write("quat.tum", "1.0 0 0 0 0 0 0 0\n")),
             (dir / "quat.tum").string() + ":1: quaternion has zero norm or is not finite");
   EXPECT_EQ(readError(write("c.csv", "#h\n1,0,0,0,1,0,0,0\n2,0,0,0,1,0,0,0,1\n")),
             (dir / "c.csv").string() + ":3: expected 8 columns like the first row, got 9");
   EXPECT_EQ(readError(write("d.csv", "1,0,0,0,1,0,0,0\r\n1,0,0,0,1,0,0,0\r\n")),
             (dir / "d.csv").string() + ":2: time stamp 1 ns is duplicated (previous row 1 ns)");
-  EXPECT_EQ(readError(write("e.csv", "1,0,0\n")),
-            (dir / "e.csv").string() + ":1: expected 17 (t, p, q, v, b_w, b_a) or 8 (t, p, q) columns, got 3");
+  EXPECT_EQ(
+      readError(write("e.csv", "1,0,0\n")),
+      (dir / "e.csv").string() + ":1: expected 17 (t, p, q, v, b_w, b_a) or 8 (t, p, q) columns, got 3");
   EXPECT_EQ(readError(dir / "absent.csv"), (dir / "absent.csv").string() + ": file not found");
   // Unnormalised quaternions written with few digits are normalised.
   const auto q = readTum(write("q.tum", "1.0 0 0 0 0 0 0 2\n").string());
@@ -177,7 +182,8 @@ TEST(MapIo, PlyRoundTripWithPointsSegmentsAndColours) {
   writeMap(path, map);
   const std::string text = readAll(path);
   EXPECT_NE(text.find("element vertex 7\n"), std::string::npos) << text;
-  EXPECT_NE(text.find("element edge 2\nproperty int vertex1\nproperty int vertex2\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("element edge 2\nproperty int vertex1\nproperty int vertex2\n"), std::string::npos)
+      << text;
   EXPECT_NE(text.find("\n3 4\n5 6\n"), std::string::npos) << text;
   const MapGeometry back = readPly(path);
   ASSERT_EQ(back.points.size(), 3u);
@@ -211,13 +217,15 @@ TEST(MapIo, ObjAndErrors) {
   EXPECT_THROW(writePly((dir / "x.ply").string(), map), UsageError);
   EXPECT_THROW(writePly((dir / "no_dir" / "x.ply").string(), MapGeometry{}), InputError);
 
-  std::ofstream(dir / "bad.ply") << "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
-                                    "property float z\nend_header\n1 2 3\n4 5\n";
+  std::ofstream(dir / "bad.ply")
+      << "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+         "property float z\nend_header\n1 2 3\n4 5\n";
   try {
     readPly((dir / "bad.ply").string());
     FAIL() << "no error";
   } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()), (dir / "bad.ply").string() + ":9: element 'vertex' row has 2 values, expected 3");
+    EXPECT_EQ(std::string(e.what()),
+              (dir / "bad.ply").string() + ":9: element 'vertex' row has 2 values, expected 3");
   }
   std::ofstream(dir / "bin.ply") << "ply\nformat binary_little_endian 1.0\nend_header\n";
   EXPECT_THROW(readPly((dir / "bin.ply").string()), InputError);

@@ -4,13 +4,13 @@
 //   loadOptionsFile("config.yaml", opt);   // keys present override defaults; unknown keys / bad values throw
 //   saveOptionsFile("out.yaml", opt);      // every field, with its doc string and range as a comment
 //
-// Loading is strict: an unknown key, a duplicated key, a value of the wrong type, a value outside [lo, hi] or not
-// among the choices throws ConfigError naming the file, the line and the full key path, e.g.
+// Loading is strict: an unknown key, a duplicated key, a value of the wrong type, a value outside [lo, hi] or
+// not among the choices throws ConfigError naming the file, the line and the full key path, e.g.
 //   config.yaml:12: key 'estimator.window_size' = 0 is out of range [2, 50]
 //   config.yaml:5: unknown key 'points.max_pts' (did you mean 'max_points'?)
-// Saving writes numbers as the shortest text that reads back to the same value, so save -> load gives back the same
-// options (Pose fields go through a rotation matrix and come back to within 1e-16).
-// Value types and their YAML forms: see io/yaml_values.h.
+// Saving writes numbers as the shortest text that reads back to the same value, so save -> load gives back
+// the same options (Pose fields go through a rotation matrix and come back to within 1e-16). Value types and
+// their YAML forms: see io/yaml_values.h.
 #pragma once
 
 #include <algorithm>
@@ -51,7 +51,8 @@ class YamlOptionsReader {
     value = v;
   }
 
-  void choice(const char* key, std::string& value, const char* doc, std::initializer_list<const char*> allowed);
+  void choice(const char* key, std::string& value, const char* doc,
+              std::initializer_list<const char*> allowed);
 
   template <class S>
   void section(const char* key, S& sub) {
@@ -102,7 +103,8 @@ class YamlOptionsWriter {
     comment(std::string(doc) + " [" + number(lo) + ", " + number(hi) + "]");
   }
 
-  void choice(const char* key, std::string& value, const char* doc, std::initializer_list<const char*> allowed);
+  void choice(const char* key, std::string& value, const char* doc,
+              std::initializer_list<const char*> allowed);
 
   template <class S>
   void section(const char* key, S& sub) {

@@ -1,17 +1,18 @@
-// Reader of the EuRoC ASL dataset layout (Burri et al., "The EuRoC micro aerial vehicle datasets", IJRR 2016):
+// Reader of the EuRoC ASL dataset layout (Burri et al., "The EuRoC micro aerial vehicle datasets",
+// IJRR 2016). Under <root>/mav0/:
+//   cam0/data.csv      "#timestamp [ns],filename"; the images are cam0/data/<filename>
+//   cam0/sensor.yaml   Kalibr style: T_BS {rows, cols, data}, rate_hz, resolution [w, h], camera_model,
+//                      intrinsics [fx fy cx cy], distortion_model, distortion_coefficients
+//   cam1/...           optional (mono without it)
+//   imu0/data.csv      "#timestamp [ns],w_x,w_y,w_z [rad/s],a_x,a_y,a_z [m/s^2]" (gyro first)
+//   imu0/sensor.yaml   gyroscope/accelerometer noise densities and random walks, rate_hz, T_BS
+//   state_groundtruth_estimate0/data.csv   optional; 17 columns (t, p, q_wxyz, v, b_w, b_a) or 8 (t, p, q)
 //
-//   <root>/mav0/cam0/data.csv            "#timestamp [ns],filename"; images in cam0/data/<filename>
-//   <root>/mav0/cam0/sensor.yaml         Kalibr style: T_BS {rows, cols, data}, rate_hz, resolution [w, h],
-//                                        camera_model, intrinsics [fx fy cx cy], distortion_model, distortion_coefficients
-//   <root>/mav0/cam1/...                 optional (mono without it)
-//   <root>/mav0/imu0/data.csv            "#timestamp [ns],w_x,w_y,w_z [rad/s],a_x,a_y,a_z [m/s^2]" (gyro first)
-//   <root>/mav0/imu0/sensor.yaml         gyroscope/accelerometer noise densities and random walks, rate_hz, T_BS
-//   <root>/mav0/state_groundtruth_estimate0/data.csv   optional; 17 columns (t, p, q_wxyz, v, b_w, b_a) or 8 (t, p, q)
-//
-// Body frame B = IMU frame (DESIGN A3). If imu0's T_BS is not the identity the camera extrinsics are re-expressed
-// in the IMU frame (T_I_C = T_B_I^-1 T_B_C) and a warning is recorded.
-// open() parses every csv (std::from_chars, no iostreams) and checks that every listed image exists (one directory
-// listing per camera, no image is decoded). Every problem is an InputError naming the file, and the line for csv rows.
+// Body frame B = IMU frame (DESIGN A3). If imu0's T_BS is not the identity the camera extrinsics are
+// re-expressed in the IMU frame (T_I_C = T_B_I^-1 T_B_C) and a warning is recorded.
+// open() parses every csv (std::from_chars, no iostreams) and checks that every listed image exists (one
+// directory listing per camera, no image is decoded). Every problem is an InputError naming the file, and
+// the line for csv rows.
 #pragma once
 
 #include <string>
@@ -34,15 +35,15 @@ struct StereoFrameRef {
   std::string right_path;  // cam1 image; empty for a monocular dataset
 };
 
-/// A ground-truth row (state_groundtruth_estimate0): pose of the body in the world, and velocity and biases when
-/// the file has 17 columns (has_velocity_bias).
+/// A ground-truth row (state_groundtruth_estimate0): pose of the body in the world, and velocity and biases
+/// when the file has 17 columns (has_velocity_bias).
 using GroundTruthState = TrajectoryState;
 
 struct EurocOpenOptions {
-  bool use_cam1 = true;         // read cam1 when present (false: monocular)
-  bool check_images = true;     // every listed image must exist on disk
+  bool use_cam1 = true;           // read cam1 when present (false: monocular)
+  bool check_images = true;       // every listed image must exist on disk
   bool load_ground_truth = true;  // read state_groundtruth_estimate0 when present
-  int threads = 0;              // csv parsing threads for large files (0: all cores); the result does not depend on it
+  int threads = 0;  // csv parsing threads for large files (0: all cores); the result does not depend on it
 
   template <class V>
   void visit(V& v) {
@@ -61,7 +62,7 @@ class EurocDataset {
   const std::string& root() const { return mav0_; }  // the mav0 folder
   const CameraCalibration& cam0() const { return cam0_; }
   const CameraCalibration* cam1() const { return has_cam1_ ? &cam1_ : nullptr; }
-  CameraRig rig() const;                    // cam0 (+ cam1)
+  CameraRig rig() const;  // cam0 (+ cam1)
   const ImuNoise& imuNoise() const { return imu_noise_; }
   const std::vector<ImuSample>& imu() const { return imu_; }
   const std::vector<StereoFrameRef>& frames() const { return frames_; }  // sorted, paired by exact time stamp
@@ -74,8 +75,9 @@ class EurocDataset {
 
   /// Index range [first, last) of the IMU samples with t0 <= t <= t1 (binary search).
   std::pair<std::size_t, std::size_t> imuRange(Timestamp t0, Timestamp t1) const;
-  /// Ground truth at `t`: linear interpolation of position, velocity and biases, slerp of the rotation, between
-  /// the two rows around t. False if t is outside the ground truth or the rows are more than max_gap_ns apart.
+  /// Ground truth at `t`: linear interpolation of position, velocity and biases, slerp of the rotation,
+  /// between the two rows around t. False if t is outside the ground truth or the rows are more than
+  /// max_gap_ns apart.
   bool groundTruthAt(Timestamp t, GroundTruthState* state, Timestamp max_gap_ns = 100'000'000) const;
 
   /// Reads an image as 8-bit gray. InputError naming the file if it is missing or cannot be decoded.
@@ -92,8 +94,9 @@ class EurocDataset {
   std::vector<std::string> warnings_;
 };
 
-/// One camera's Kalibr/EuRoC sensor.yaml -> calibration (T_B_C = T_BS). distortion_model "radial-tangential" and
-/// "radtan" -> "radtan"; "equidistant" / "fisheye" -> "equidistant"; "none" -> "none". InputError naming file and key.
+/// One camera's Kalibr/EuRoC sensor.yaml -> calibration (T_B_C = T_BS). distortion_model "radial-tangential"
+/// and "radtan" -> "radtan"; "equidistant" / "fisheye" -> "equidistant"; "none" -> "none". InputError naming
+/// file and key.
 CameraCalibration readCameraSensorYaml(const std::string& path);
 
 /// imu0 sensor.yaml -> noise parameters (gravity keeps its default). T_B_S (the IMU in the body frame) is

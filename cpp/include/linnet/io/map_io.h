@@ -1,8 +1,8 @@
 // Point-and-line maps as files that 3D viewers open (MeshLab, CloudCompare, Open3D, Blender).
 //
 // PLY (ascii 1.0): element "vertex" with x y z (double) and, when colours are given, red green blue (uchar);
-// line segments are element "edge" (vertex1 vertex2, int) over two extra vertices per segment, appended after the
-// map points. OBJ: "v x y z [r g b]" lines (colour as floats in [0, 1]) and "l i j" segments (1-based).
+// line segments are element "edge" (vertex1 vertex2, int) over two extra vertices per segment, appended after
+// the map points. OBJ: "v x y z [r g b]" lines (colour as floats in [0, 1]) and "l i j" segments (1-based).
 // Coordinates are written with the shortest text that reads back to the same double.
 #pragma once
 
@@ -26,13 +26,13 @@ struct Segment3 {
 /// What a map file holds: points (optionally coloured) and line segments (optionally coloured).
 struct MapGeometry {
   std::vector<Vec3> points;
-  std::vector<Rgb> point_colors;     // empty, or one per point
+  std::vector<Rgb> point_colors;  // empty, or one per point
   std::vector<Segment3> segments;
-  std::vector<Rgb> segment_colors;   // empty, or one per segment
+  std::vector<Rgb> segment_colors;  // empty, or one per segment
 };
 
-/// Writes a PLY file. UsageError if a colour list has the wrong length, InputError if the file cannot be written.
-/// Colours are written if either list is non-empty (uncoloured items get `default_color`).
+/// Writes a PLY file. UsageError if a colour list has the wrong length, InputError if the file cannot be
+/// written. Colours are written if either list is non-empty (uncoloured items get `default_color`).
 void writePly(const std::string& path, const MapGeometry& map, const Rgb& default_color = {200, 200, 200});
 /// Writes an OBJ file (same rules).
 void writeObj(const std::string& path, const MapGeometry& map, const Rgb& default_color = {200, 200, 200});

@@ -1,7 +1,8 @@
-// Fast, strict parsing of line-oriented text files (csv, TUM): the file is memory-mapped (or read at once), lines
-// are handed out as string_views, fields are split without allocation and numbers are parsed with std::from_chars.
-// Large files are parsed in parallel chunks (parseRows), with the same result for any thread count.
-// Every error is an InputError "<file>:<line>: <what>" (lines counted from 1, as an editor shows them).
+// Fast, strict parsing of line-oriented text files (csv, TUM): the file is memory-mapped (or read at once),
+// lines are handed out as string_views, fields are split without allocation and numbers are parsed with
+// std::from_chars. Large files are parsed in parallel chunks (parseRows), with the same result for any thread
+// count. Every error is an InputError "<file>:<line>: <what>" (lines counted from 1, as an editor shows
+// them).
 #pragma once
 
 #include <cstdint>
@@ -70,10 +71,10 @@ class TextFile {
  private:
   TextFile() = default;
   std::string path_;
-  std::string owned_;          // contents when not memory-mapped
+  std::string owned_;  // contents when not memory-mapped
   const char* data_ = nullptr;
   std::size_t size_ = 0;
-  void* map_ = nullptr;        // mmap region (nullptr if owned_ holds the text)
+  void* map_ = nullptr;  // mmap region (nullptr if owned_ holds the text)
   std::size_t map_size_ = 0;
 };
 
@@ -81,10 +82,11 @@ class TextFile {
 int parseThreads(std::size_t bytes, int max_threads = 0);
 
 /// Parses every data line (not blank, not '#') of `file` with `parse_row(lines, line) -> Row`, in `threads`
-/// chunks in parallel, and returns the rows in file order. If rows fail, the error of the first failing line in
-/// file order is thrown, so the result and the error do not depend on the thread count.
+/// chunks in parallel, and returns the rows in file order. If rows fail, the error of the first failing line
+/// in file order is thrown, so the result and the error do not depend on the thread count.
 template <class Row, class ParseRow>
-std::vector<Row> parseRows(const TextFile& file, int threads, ParseRow parse_row, std::size_t bytes_per_row = 64) {
+std::vector<Row> parseRows(const TextFile& file, int threads, ParseRow parse_row,
+                           std::size_t bytes_per_row = 64) {
   std::vector<TextLines> chunks = file.split(threads);
   std::vector<std::vector<Row>> parts(chunks.size());
   std::vector<std::exception_ptr> errors(chunks.size());
@@ -113,7 +115,8 @@ std::vector<Row> parseRows(const TextFile& file, int threads, ParseRow parse_row
   for (const auto& p : parts) total += p.size();
   std::vector<Row> rows;
   rows.reserve(total);
-  for (auto& p : parts) rows.insert(rows.end(), std::make_move_iterator(p.begin()), std::make_move_iterator(p.end()));
+  for (auto& p : parts)
+    rows.insert(rows.end(), std::make_move_iterator(p.begin()), std::make_move_iterator(p.end()));
   return rows;
 }
 

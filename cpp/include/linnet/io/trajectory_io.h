@@ -1,12 +1,12 @@
 // Trajectory files: TUM and EuRoC-style csv, writers and readers.
 //
-// TUM (Sturm et al., IROS 2012): one pose per line, "t x y z qx qy qz qw", t in seconds (written with exactly 9
-//   decimals, i.e. the int64 ns stamp printed without rounding), position of B in W in metres, quaternion q_W_B in
-//   TUM order x y z w (Hamilton). Lines starting with '#' are comments.
-// EuRoC csv (ASL state_groundtruth_estimate0/data.csv): "t_ns,px,py,pz,qw,qx,qy,qz,vx,vy,vz,bgx,bgy,bgz,bax,bay,baz",
-//   quaternion in EuRoC order w x y z, velocity in W (m/s), gyroscope then accelerometer bias (rad/s, m/s^2).
+// TUM (Sturm et al., IROS 2012): one pose per line, "t x y z qx qy qz qw"; t in seconds, written with
+//   exactly 9 decimals (the int64 ns stamp printed without rounding); position of B in W in metres;
+//   quaternion q_W_B in TUM order x y z w (Hamilton). Lines starting with '#' are comments.
+// EuRoC csv (ASL state_groundtruth_estimate0/data.csv): 17 columns
+//   t_ns, p xyz, q wxyz (EuRoC order), v_W xyz (m/s), gyro bias xyz (rad/s), accel bias xyz (m/s^2).
 //   The 8-column variant (t, p, q) is read too.
-// Numbers are written with the shortest text that parses back to the same double, so write -> read is exact.
+// Numbers are written with the shortest text that parses back to the same double: write -> read is exact.
 #pragma once
 
 #include <cstdio>
@@ -21,11 +21,11 @@ namespace linnet {
 
 /// One time-stamped navigation state: the rows of a ground-truth file or an estimator's output.
 struct TrajectoryState {
-  Timestamp t = 0;               // ns
-  Pose T_W_B;                    // body (IMU) in world
-  Vec3 v_W = Vec3::Zero();       // m/s, in W
-  Vec3 b_g = Vec3::Zero();       // gyroscope bias, rad/s
-  Vec3 b_a = Vec3::Zero();       // accelerometer bias, m/s^2
+  Timestamp t = 0;                 // ns
+  Pose T_W_B;                      // body (IMU) in world
+  Vec3 v_W = Vec3::Zero();         // m/s, in W
+  Vec3 b_g = Vec3::Zero();         // gyroscope bias, rad/s
+  Vec3 b_a = Vec3::Zero();         // accelerometer bias, m/s^2
   bool has_velocity_bias = false;  // false when the source had poses only (TUM, 8-column csv)
 };
 

@@ -1,5 +1,6 @@
-// Strict conversion of YAML nodes to the value types of options structs and sensor files, with error messages that
-// name the file, the line and the key ("config.yaml:12: key 'estimator.window_size' expects an integer, got 'ten'").
+// Strict conversion of YAML nodes to the value types of options structs and sensor files, with error
+// messages that name the file, the line and the key
+// ("config.yaml:12: key 'estimator.window_size' expects an integer, got 'ten'").
 //
 // Accepted YAML for each C++ type:
 //   bool                     true/false, yes/no, on/off (any case)
@@ -8,10 +9,11 @@
 //   std::string              any scalar
 //   std::vector<T>           a sequence of T (may be empty)
 //   std::array<T, N>         a sequence of exactly N
-//   fixed-size Eigen matrix  a row-major list of rows*cols numbers, or a nested list of rows, or a Kalibr map
-//                            {rows: R, cols: C, data: [...]}
-//   linnet::Pose             a 4x4 transform as a 16-number row-major list or a Kalibr map {rows: 4, cols: 4, data};
-//                            the rotation block must be orthonormal (|R^T R - I| < 1e-6) and the last row 0 0 0 1
+//   fixed-size Eigen matrix  a row-major list of rows*cols numbers, or a nested list of rows, or a Kalibr
+//                            map {rows: R, cols: C, data: [...]}
+//   linnet::Pose             a 4x4 transform: a 16-number row-major list or a Kalibr map
+//                            {rows: 4, cols: 4, data: [...]}; the rotation block must be orthonormal
+//                            (|R^T R - I| < 1e-6, det +1) and the last row 0 0 0 1
 #pragma once
 
 #include <array>
@@ -30,13 +32,15 @@ namespace linnet::yaml {
 
 /// Where a value comes from: the file (or other source name), the full key path, and which error to throw.
 struct Context {
-  std::string source;          // file name shown in messages
-  std::string key;             // full dotted key path
-  bool input_error = false;    // throw InputError (data files) instead of ConfigError (configuration)
+  std::string source;        // file name shown in messages
+  std::string key;           // full dotted key path
+  bool input_error = false;  // throw InputError (data files) instead of ConfigError (configuration)
 
   /// Throws "<source>:<line>: key '<key>' <what>" (line of `at` when it has one).
   [[noreturn]] void fail(const YAML::Node& at, const std::string& what) const;
-  Context child(const std::string& sub) const { return {source, key.empty() ? sub : key + "." + sub, input_error}; }
+  Context child(const std::string& sub) const {
+    return {source, key.empty() ? sub : key + "." + sub, input_error};
+  }
 };
 
 /// "<source>:<line>" of a node (1-based line), or "<source>" when the node has no position.
@@ -59,8 +63,8 @@ double decodeReal(const YAML::Node& n, const Context& ctx);
 std::vector<double> decodeMatrixData(const YAML::Node& n, const Context& ctx, int rows, int cols);
 
 template <class T>
-std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T, bool>> decode(const YAML::Node& n, const Context& ctx,
-                                                                            T& out) {
+std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T, bool>> decode(const YAML::Node& n,
+                                                                           const Context& ctx, T& out) {
   out = static_cast<T>(decodeInteger(n, ctx, static_cast<std::int64_t>(std::numeric_limits<T>::min()),
                                      static_cast<std::uint64_t>(std::numeric_limits<T>::max())));
 }
@@ -85,8 +89,8 @@ void decode(const YAML::Node& n, const Context& ctx, Eigen::Matrix<S, R, C, O, M
       const double x = data[static_cast<std::size_t>(r * C + c)];
       if constexpr (std::is_integral_v<S>) {
         if (!(x == static_cast<double>(static_cast<S>(x))))
-          ctx.fail(n, "expects integers, got " + std::to_string(x) + " at row " + std::to_string(r) + ", column " +
-                          std::to_string(c));
+          ctx.fail(n, "expects integers, got " + std::to_string(x) + " at row " + std::to_string(r) +
+                          ", column " + std::to_string(c));
       }
       result(r, c) = static_cast<S>(x);
     }
@@ -116,7 +120,7 @@ void decode(const YAML::Node& n, const Context& ctx, std::array<T, N>& out) {
 void encode(YAML::Emitter& out, bool v);
 void encode(YAML::Emitter& out, const std::string& v);
 void encode(YAML::Emitter& out, const Pose& v);
-void encodeReal(YAML::Emitter& out, double v);      // shortest text that reads back to the same double
+void encodeReal(YAML::Emitter& out, double v);  // shortest text that reads back to the same double
 void encodeInteger(YAML::Emitter& out, std::int64_t v);
 
 template <class T>
