@@ -1,0 +1,98 @@
+"""`linnet bench lines DATASET [--json FILE]`: per-stage median / p95 ms of the line front-end, counts, track lengths.
+
+Times are measured inside the C++ tracker (steady clock around each stage); image loading is not included.
+Pin to one core for the issue's figures: `taskset -c 1 linnet bench lines DATASET`.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+STAGES = ("detect_ms", "merge_ms", "describe_ms", "temporal_ms", "stereo_ms", "left_ms", "total_ms")
+
+
+def bench(dataset, frames=None, options=None, mono=False, repeat=1):
+    """Runs the tracker over the frames `repeat` times (fresh tracker each time); returns the result dict."""
+    import numpy as np
+
+    from linnet import lines
+
+    data = lines.EurocStereo(dataset)
+    start, stop = lines.parse_frames(frames, len(data))
+    images = list(data.frames(start, stop))  # decode once: the loop times only the tracker
+    series = {s: [] for s in STAGES}
+    counts = {"lines": [], "stereo_matched": [], "tracked": [], "new_lines": [], "detected_left": [],
+              "detected_right": []}
+    final_length, age = {}, []
+    tracker = None
+    for rep in range(repeat):
+        tracker = lines.make_tracker(data, options, mono=mono)
+        for t_ns, left, right in images:
+            obs = tracker.track(t_ns, left, None if mono else right)
+            tm = tracker.last_timings()
+            for s in STAGES:
+                series[s].append(tm[s])
+            if rep == 0:
+                counts["lines"].append(len(obs["id"]))
+                for c in ("stereo_matched", "tracked", "new_lines", "detected_left", "detected_right"):
+                    counts[c].append(tm[c])
+                for i, n in zip(obs["id"], obs["track_length"]):
+                    final_length[int(i)] = int(n)
+                age.extend(int(n) for n in obs["track_length"])
+    table = lines.percentile_table(series)
+    return {
+        "dataset": str(dataset), "frames": len(images), "repeat": repeat, "mono": mono,
+        "options": tracker.options() if tracker is not None else {},
+        "stages_ms": table,
+        "counts_median": {k: float(np.median(v)) if v else 0.0 for k, v in counts.items()},
+        "track_length": {
+            "ids": len(final_length),
+            "median_per_id": float(np.median(list(final_length.values()))) if final_length else 0.0,
+            "mean_per_id": float(np.mean(list(final_length.values()))) if final_length else 0.0,
+            "median_of_delivered_lines": float(np.median(age)) if age else 0.0,
+        },
+    }
+
+
+@click.command("lines")
+@click.argument("dataset", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the results as JSON.")
+@click.option("--frames", default=None, help="Frame range A:B (Python slice).")
+@click.option("--detector", type=click.Choice(["edlines", "fld", "lsd"]), default=None, help="Line detector.")
+@click.option("--repeat", type=int, default=1, show_default=True, help="Passes over the frames (timings pooled).")
+@click.option("--mono", is_flag=True, help="Ignore cam1.")
+def COMMAND(dataset, json_out, frames, detector, repeat, mono):
+    """Benchmark the line front-end on DATASET: per-stage median / p95 ms, counts and track lengths."""
+    from linnet import lines
+
+    opts = {}
+    if detector:
+        opts["detection.detector"] = detector
+        if detector == "lsd":
+            opts["detection.downsample"] = 1
+    if repeat < 1:
+        raise click.BadParameter("must be >= 1", param_hint="--repeat")
+    try:
+        res = bench(dataset, frames, opts, mono, repeat)
+    except lines.DatasetError as e:
+        raise click.ClickException(str(e)) from e
+    except ValueError as e:
+        raise click.BadParameter(str(e), param_hint="--frames") from e
+    click.echo(f"line front-end on {dataset} ({res['frames']} frames x {repeat}, detector "
+               f"{res['options'].get('detection.detector')}, {'mono' if mono else 'stereo'})")
+    click.echo("| stage | median ms | p95 ms | max ms |")
+    click.echo("|---|---|---|---|")
+    for name, s in res["stages_ms"].items():
+        click.echo(f"| {name[:-3]} | {s['median']:.2f} | {s['p95']:.2f} | {s['max']:.2f} |")
+    c = res["counts_median"]
+    tl = res["track_length"]
+    click.echo(f"median per frame: {c['lines']:.0f} lines, {c['stereo_matched']:.0f} stereo, {c['tracked']:.0f} "
+               f"tracked, {c['new_lines']:.0f} new; detected {c['detected_left']:.0f} left / "
+               f"{c['detected_right']:.0f} right")
+    click.echo(f"track length: {tl['ids']} ids, median {tl['median_per_id']:.0f} (mean {tl['mean_per_id']:.1f}) "
+               f"frames per id; median {tl['median_of_delivered_lines']:.0f} for the delivered lines")
+    if json_out:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(res, indent=2) + "\n", encoding="utf-8")

@@ -1,0 +1,197 @@
+"""Line front-end from Python: ground-truth scoring functions, the LineTracker binding on synthetic frames, the
+EuRoC reader, and the `linnet lines` / `linnet bench lines` commands on the real micro snippet."""
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from linnet import lines
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _micro() -> Path:
+    root = Path(os.environ.get("LINNET_SHARED_DATA", REPO.parent / "shared" / "data"))
+    path = root / "euroc" / "V1_01_easy_micro"
+    if not path.is_dir():
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"shared data missing: {path}")
+        pytest.skip(f"shared data missing: {path}")
+    return path
+
+
+# --- scoring functions -------------------------------------------------------------------------------------------
+
+
+def _poly(a, b, n=20):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+
+
+def test_match_segment_tolerance_and_overlap():
+    gt = _poly((100, 100), (300, 100))
+    assert lines.match_segment([110, 101.5, 280, 98.5], gt)              # within 2 px, 85% of the segment
+    assert not lines.match_segment([110, 102.5, 280, 100], gt)           # one endpoint 2.5 px away
+    assert not lines.match_segment([100, 100, 180, 100], gt)             # covers only 40% of the segment
+    assert lines.match_segment([100, 100, 180, 100], gt, overlap_of="shorter")  # but all of the detection is on it
+    assert lines.match_segment([280, 100, 110, 100], gt)                 # orientation does not matter
+    assert not lines.match_segment([100, 100, 300, 100], gt[:1])         # degenerate ground truth
+
+
+def test_match_segment_follows_a_curved_projection():
+    # A distorted projection: an arc of a large circle; the chord's endpoints lie on it.
+    th = np.linspace(-0.3, 0.3, 60)
+    gt = np.c_[400 + 1000 * np.sin(th), 1000 - 1000 * np.cos(th)]
+    det = np.r_[gt[5], gt[54]]
+    assert lines.match_segment(det, gt)
+
+
+def test_detection_recall_and_assignment():
+    gts = [_poly((0, 0), (100, 0)), _poly((0, 50), (100, 50)), _poly((0, 80), (30, 80))]  # the last is < 40 px
+    dets = np.array([[5, 0.5, 95, 0.5], [0, 60, 100, 60]])
+    assert lines.detection_recall(dets, gts) == (1, 2)
+    assert lines.assign_segment(dets[0], gts) == 0
+    assert lines.assign_segment(dets[1], gts) == -1
+    assert lines.pair_precision([0, 1, -1, 2], [0, 2, 1, -1]) == (1, 2)
+
+
+def test_parse_frames():
+    assert lines.parse_frames(None, 10) == (0, 10)
+    assert lines.parse_frames("2:5", 10) == (2, 5)
+    assert lines.parse_frames("-3:", 10) == (7, 10)
+    assert lines.parse_frames(":100", 10) == (0, 10)
+    for bad in ("5", "a:b", "5:2"):
+        with pytest.raises(ValueError):
+            lines.parse_frames(bad, 10)
+
+
+def test_percentile_table_and_colours():
+    t = lines.percentile_table({"a": [1, 2, 3, 4, 100], "b": []})
+    assert t["a"]["median"] == 3 and t["a"]["max"] == 100
+    assert np.isnan(t["b"]["median"])
+    assert lines.id_colour(7) == lines.id_colour(7) and lines.id_colour(7) != lines.id_colour(8)
+
+
+# --- binding on synthetic frames -------------------------------------------------------------------------------
+
+
+def _core():
+    try:
+        from linnet import _linnet
+    except ImportError as e:  # the compiled module is part of every install; say why it is missing
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"compiled core missing: {e}")
+        pytest.skip(f"compiled core missing: {e}")
+    if not hasattr(_linnet, "LineTracker"):
+        pytest.skip("compiled core predates the line bindings")
+    return _linnet
+
+
+def _boxes(shift=0.0):
+    import cv2
+
+    img = np.full((480, 752), 70, np.uint8)
+    rng = np.random.default_rng(4)
+    for _ in range(12):
+        x, y = rng.uniform(40, 600), rng.uniform(30, 350)
+        w, h = rng.uniform(60, 150), rng.uniform(50, 120)
+        pts = np.array([[x + shift, y], [x + w + shift, y + 0.2 * h], [x + w + shift, y + h], [x + shift, y + h]])
+        cv2.fillConvexPoly(img, np.round(pts * 16).astype(np.int32), int(rng.integers(100, 250)), cv2.LINE_AA, 4)
+    return cv2.GaussianBlur(img, (5, 5), 0.8)
+
+
+PINHOLE = {"width": 752, "height": 480, "intrinsics": [450.0, 450.0, 375.5, 239.5], "distortion": "none",
+           "distortion_coeffs": []}
+
+
+def test_tracker_binding_tracks_a_shifting_scene():
+    core = _core()
+    T = np.eye(4)
+    T[0, 3] = -0.11  # cam1 11 cm right of cam0
+    tr = core.LineTracker(PINHOLE, PINHOLE, T, {"max_lines": 60})
+    ids_prev = None
+    for k in range(4):
+        left = _boxes(3.0 * k)
+        right = _boxes(3.0 * k - 12.0)  # a constant 12 px disparity: everything at fx * b / 12 = 4.1 m
+        obs = tr.track(1_000_000 + k * 50_000_000, left, right)
+        n = len(obs["id"])
+        assert 10 <= n <= 60
+        assert np.all(np.diff(obs["id"]) > 0)
+        assert obs["ps0"].shape == (n, 2) and obs["s1"].shape == (n, 2)
+        # Normalised = (pixel - c) / f for an undistorted pinhole.
+        np.testing.assert_allclose(obs["s0"] * 450.0 + [375.5, 239.5], obs["ps0"], atol=1e-6)
+        if k > 0:
+            assert len(set(obs["id"]) & ids_prev) >= 0.7 * n
+        ids_prev = set(obs["id"].tolist())
+        m = obs["has_right"]
+        assert m.sum() >= 0.5 * n
+        # Right lines sit 12 px left of the left ones, along the normal at least.
+        d0 = obs["pe0"][m] - obs["ps0"][m]
+        nrm = np.c_[-d0[:, 1], d0[:, 0]] / np.linalg.norm(d0, axis=1)[:, None]
+        off = ((obs["ps1"][m] - obs["ps0"][m]) * nrm).sum(1)
+        expect = (np.array([-12.0, 0.0]) * nrm).sum(1)
+        assert np.median(np.abs(off - expect)) < 1.0
+    tm = tr.last_timings()
+    assert tm["total_ms"] > 0 and tm["tracked"] > 0
+    assert tr.options()["detection.detector"] == "edlines"
+
+
+def test_tracker_binding_errors_and_degenerate_images():
+    core = _core()
+    with pytest.raises(Exception, match="lines.nonsense"):
+        core.LineTracker(PINHOLE, None, None, {"nonsense": 1})
+    with pytest.raises(Exception, match="T_C1_C0"):
+        core.LineTracker(PINHOLE, PINHOLE, None, {})
+    tr = core.LineTracker(PINHOLE)
+    for img in (np.zeros((480, 752), np.uint8), np.full((480, 752), 255, np.uint8),
+                np.random.default_rng(1).integers(0, 256, (480, 752)).astype(np.uint8)):
+        obs = tr.track(len(str(img.sum())), img)  # any increasing-enough time
+        assert obs["id"].dtype == np.int64
+    with pytest.raises(Exception):
+        tr.track(10**12, np.zeros((10, 10), np.uint8))
+    segs = core.detect_lines(_boxes(), {"detection.detector": "lsd", "detection.downsample": 1})
+    assert segs.ndim == 2 and segs.shape[1] == 4 and len(segs) > 10
+
+
+# --- real data and commands --------------------------------------------------------------------------------------
+
+
+def test_euroc_reader():
+    data = lines.EurocStereo(_micro())
+    assert len(data) == 95 and data.stereo
+    assert data.cam0["distortion"] == "radtan" and data.cam0["width"] == 752
+    T = data.T_C1_C0
+    assert abs(np.linalg.norm(T[:3, 3]) - 0.110) < 0.002
+    t, left, right = next(data.frames(0, 1))
+    assert left.shape == (480, 752) and right.shape == (480, 752) and left.dtype == np.uint8
+
+
+def test_euroc_reader_errors(tmp_path):
+    with pytest.raises(lines.DatasetError, match="sensor.yaml"):
+        lines.EurocStereo(tmp_path)
+
+
+def test_lines_and_bench_commands(tmp_path):
+    _core()
+    from click.testing import CliRunner
+
+    from linnet.cli import cli
+
+    micro = _micro()
+    runner = CliRunner()
+    res = runner.invoke(cli, ["lines", str(micro), "--out", str(tmp_path / "view"), "--frames", "0:6"])
+    assert res.exit_code == 0, res.output
+    pngs = sorted((tmp_path / "view").glob("frame_*.png"))
+    assert len(pngs) == 6
+    rows = np.loadtxt(tmp_path / "view" / "lines.csv", delimiter=",", comments="#")
+    assert rows.shape == (6, 15) and np.all(rows[:, 2] >= 30)
+    res = runner.invoke(cli, ["bench", "lines", str(micro), "--frames", "0:20", "--json", str(tmp_path / "b.json")])
+    assert res.exit_code == 0, res.output
+    assert "| detect |" in res.output
+    out = json.loads((tmp_path / "b.json").read_text())
+    assert out["frames"] == 20 and out["counts_median"]["lines"] >= 30
+    assert out["stages_ms"]["total_ms"]["median"] > 0
+    res = runner.invoke(cli, ["lines", str(micro), "--out", str(tmp_path / "x"), "--frames", "9:2"])
+    assert res.exit_code != 0
