@@ -17,34 +17,6 @@ namespace linnet {
 namespace fs = std::filesystem;
 namespace {
 
-/// A required key of a sensor.yaml, or InputError "<file>: missing key '<key>'".
-YAML::Node requireKey(const YAML::Node& root, const std::string& file, const char* key) {
-  const YAML::Node n = root[key];
-  if (!n) io::failInput(file, 0, std::string("missing key '") + key + "'");
-  return n;
-}
-
-YAML::Node loadSensorYaml(const std::string& path) {
-  const YAML::Node root = loadYamlFile(path);
-  if (!root.IsMap())
-    io::failInput(path, 0, "expected a map of sensor parameters, got " + yaml::describe(root));
-  return root;
-}
-
-template <class T>
-T readValue(const YAML::Node& root, const std::string& file, const char* key) {
-  T value{};
-  yaml::decode(requireKey(root, file, key), yaml::Context{file, key, true}, value);
-  return value;
-}
-
-double readPositive(const YAML::Node& root, const std::string& file, const char* key) {
-  const double v = readValue<double>(root, file, key);
-  if (!(v > 0.0) || !std::isfinite(v))
-    yaml::Context{file, key, true}.fail(root[key], "must be a positive number, got " + io::formatDouble(v));
-  return v;
-}
-
 bool isIdentity(const Pose& T, double tol = 1e-9) {
   return (T.matrix() - Mat4::Identity()).cwiseAbs().maxCoeff() < tol;
 }
@@ -62,91 +34,52 @@ struct CameraStream {
   CameraCalibration calib;
   std::vector<CameraCsvRow> rows;
   fs::path data_dir;
+  std::size_t missing_images = 0;  // dropped because the file is missing (drop_missing_images)
 };
 
-CameraStream readCameraStream(const fs::path& cam_dir, bool check_images, int threads) {
+/// Reads camN/data.csv and checks its images; the calibration comes from camN/sensor.yaml unless given.
+CameraStream readCameraStream(const fs::path& cam_dir, const EurocOpenOptions& options,
+                              const CameraCalibration* calib) {
   CameraStream s;
   const fs::path csv = cam_dir / "data.csv";
-  s.calib = readCameraSensorYaml((cam_dir / "sensor.yaml").string());
-  s.rows = readCameraCsv(csv.string(), threads);
+  s.calib = calib ? *calib : readCameraSensorYaml((cam_dir / "sensor.yaml").string());
+  s.rows = readCameraCsv(csv.string(), options.threads);
   s.data_dir = cam_dir / "data";
-  if (check_images) {
+  if (options.check_images) {
     std::error_code ec;
     if (!fs::is_directory(s.data_dir, ec))
       io::failInput(s.data_dir.string(), 0, "image folder not found (listed by " + csv.string() + ")");
     const std::unordered_set<std::string> names = listFileNames(s.data_dir);
-    for (const CameraCsvRow& r : s.rows) {
+    std::vector<CameraCsvRow> kept;
+    kept.reserve(s.rows.size());
+    for (CameraCsvRow& r : s.rows) {
       const bool plain = r.filename.find('/') == std::string::npos;
       const bool found = plain ? names.count(r.filename) > 0 : fs::exists(s.data_dir / r.filename, ec);
-      if (!found)
+      if (found) {
+        kept.push_back(std::move(r));
+      } else if (options.drop_missing_images) {
+        ++s.missing_images;
+      } else {
         io::failInput(csv.string(), r.line, "image not found on disk: " + (s.data_dir / r.filename).string());
+      }
     }
+    s.rows = std::move(kept);
   }
   return s;
 }
 
+/// Median frame interval -> rate (for calibrations that do not hold it, like Kalibr camchains).
+double rateFromTimestamps(const std::vector<CameraCsvRow>& rows, double fallback) {
+  if (rows.size() < 2) return fallback;
+  std::vector<Timestamp> dt;
+  dt.reserve(rows.size() - 1);
+  for (std::size_t i = 1; i < rows.size(); ++i) dt.push_back(rows[i].t - rows[i - 1].t);
+  std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
+  const Timestamp median = dt[dt.size() / 2];
+  return median > 0 ? 1e9 / static_cast<double>(median) : fallback;
+}
+
 }  // namespace
-
-CameraCalibration readCameraSensorYaml(const std::string& path) {
-  const YAML::Node root = loadSensorYaml(path);
-  CameraCalibration c;
-  yaml::decode(requireKey(root, path, "T_BS"), yaml::Context{path, "T_BS", true}, c.T_B_C);
-  c.rate_hz = readPositive(root, path, "rate_hz");
-  const auto res = readValue<std::array<int, 2>>(root, path, "resolution");
-  if (res[0] <= 0 || res[1] <= 0)
-    yaml::Context{path, "resolution", true}.fail(root["resolution"],
-                                                 "must be two positive integers [width, height]");
-  c.width = res[0];
-  c.height = res[1];
-  c.model = readValue<std::string>(root, path, "camera_model");
-  if (c.model != "pinhole")
-    yaml::Context{path, "camera_model", true}.fail(root["camera_model"],
-                                                   "= '" + c.model + "' is not supported (pinhole)");
-  c.intrinsics = readValue<std::array<double, 4>>(root, path, "intrinsics");
-  for (int i = 0; i < 4; ++i) {
-    const double x = c.intrinsics[static_cast<std::size_t>(i)];
-    if (!std::isfinite(x) || (i < 2 && x <= 0.0))
-      yaml::Context{path, "intrinsics", true}.fail(root["intrinsics"],
-                                                   "must be [fx, fy, cx, cy] with fx, fy > 0");
-  }
-  const std::string dist = readValue<std::string>(root, path, "distortion_model");
-  std::size_t expected = 4;
-  if (dist == "radial-tangential" || dist == "radtan" || dist == "plumb_bob") {
-    c.distortion = "radtan";
-  } else if (dist == "equidistant" || dist == "fisheye" || dist == "kannala_brandt" || dist == "kb4") {
-    c.distortion = "equidistant";
-  } else if (dist == "none") {
-    c.distortion = "none";
-    expected = 0;
-  } else {
-    yaml::Context{path, "distortion_model", true}.fail(
-        root["distortion_model"],
-        "= '" + dist + "' is not supported (radial-tangential | radtan | equidistant | none)");
-  }
-  c.distortion_coeffs = expected == 0 && !root["distortion_coefficients"]
-                            ? std::vector<double>{}
-                            : readValue<std::vector<double>>(root, path, "distortion_coefficients");
-  if (c.distortion_coeffs.size() != expected)
-    yaml::Context{path, "distortion_coefficients", true}.fail(
-        root["distortion_coefficients"], "must hold " + std::to_string(expected) + " values for '" + dist +
-                                             "', got " + std::to_string(c.distortion_coeffs.size()));
-  return c;
-}
-
-ImuNoise readImuSensorYaml(const std::string& path, Pose* T_B_S) {
-  const YAML::Node root = loadSensorYaml(path);
-  ImuNoise n;
-  n.gyr_noise_density = readPositive(root, path, "gyroscope_noise_density");
-  n.gyr_random_walk = readPositive(root, path, "gyroscope_random_walk");
-  n.acc_noise_density = readPositive(root, path, "accelerometer_noise_density");
-  n.acc_random_walk = readPositive(root, path, "accelerometer_random_walk");
-  n.rate_hz = readPositive(root, path, "rate_hz");
-  if (T_B_S) {
-    *T_B_S = Pose();
-    if (const YAML::Node t = root["T_BS"]) yaml::decode(t, yaml::Context{path, "T_BS", true}, *T_B_S);
-  }
-  return n;
-}
 
 std::vector<CameraCsvRow> readCameraCsv(const std::string& path, int max_threads) {
   const io::TextFile file = io::TextFile::read(path);
@@ -212,11 +145,13 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
 
   // IMU first: the body frame is the IMU frame.
   Pose T_B_I;
-  d.imu_noise_ = readImuSensorYaml((mav0 / "imu0" / "sensor.yaml").string(), &T_B_I);
+  const std::string imu_yaml =
+      options.imu_yaml.empty() ? (mav0 / "imu0" / "sensor.yaml").string() : options.imu_yaml;
+  d.imu_noise_ = readImuSensorYaml(imu_yaml, &T_B_I);
   d.imu_ = readImuCsv((mav0 / "imu0" / "data.csv").string(), options.threads);
   if (d.imu_.empty()) io::failInput((mav0 / "imu0" / "data.csv").string(), 0, "no IMU samples");
   const Pose T_I_B = T_B_I.inverse();
-  if (!isIdentity(T_B_I))
+  if (!isIdentity(T_B_I) && options.camchain.empty())
     d.warnings_.push_back("imu0 T_BS is not the identity: camera extrinsics re-expressed in the IMU frame");
   const auto gaps = [&] {
     std::size_t count = 0;
@@ -227,9 +162,34 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
   }();
   if (gaps > 0) d.warnings_.push_back("imu0: " + std::to_string(gaps) + " gaps longer than 3 sample periods");
 
-  CameraStream cam0 = readCameraStream(mav0 / "cam0", options.check_images, options.threads);
+  // Camera calibration: camN/sensor.yaml (extrinsics w.r.t. the EuRoC body frame), or a Kalibr camchain
+  // (extrinsics w.r.t. the IMU already).
+  KalibrCamchain chain;
+  if (!options.camchain.empty()) chain = readKalibrCamchain(options.camchain);
+  const auto calibOf = [&](std::size_t i) -> const CameraCalibration* {
+    if (options.camchain.empty()) return nullptr;
+    if (i >= chain.cameras.size())
+      io::failInput(options.camchain, 0,
+                    "missing key 'cam" + std::to_string(i) + "' for the dataset's cam" + std::to_string(i));
+    return &chain.cameras[i];
+  };
+  const auto toImuFrame = [&](CameraStream& cam) {
+    if (options.camchain.empty()) {
+      cam.calib.T_B_C = T_I_B * cam.calib.T_B_C;
+    } else {
+      cam.calib.rate_hz = rateFromTimestamps(cam.rows, cam.calib.rate_hz);
+    }
+  };
+  const auto reportMissing = [&](const CameraStream& cam, const char* name) {
+    if (cam.missing_images > 0)
+      d.warnings_.push_back(std::string(name) + ": dropped " + std::to_string(cam.missing_images) +
+                            " rows whose image file is missing");
+  };
+
+  CameraStream cam0 = readCameraStream(mav0 / "cam0", options, calibOf(0));
+  toImuFrame(cam0);
+  reportMissing(cam0, "cam0");
   d.cam0_ = cam0.calib;
-  d.cam0_.T_B_C = T_I_B * d.cam0_.T_B_C;
   if (cam0.rows.empty()) io::failInput((mav0 / "cam0" / "data.csv").string(), 0, "no images listed");
 
   const bool want_cam1 = options.use_cam1 && fs::is_directory(mav0 / "cam1", ec);
@@ -237,9 +197,10 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
     d.frames_.reserve(cam0.rows.size());
     for (const auto& r : cam0.rows) d.frames_.push_back({r.t, (cam0.data_dir / r.filename).string(), ""});
   } else {
-    CameraStream cam1 = readCameraStream(mav0 / "cam1", options.check_images, options.threads);
+    CameraStream cam1 = readCameraStream(mav0 / "cam1", options, calibOf(1));
+    toImuFrame(cam1);
+    reportMissing(cam1, "cam1");
     d.cam1_ = cam1.calib;
-    d.cam1_.T_B_C = T_I_B * d.cam1_.T_B_C;
     d.has_cam1_ = true;
     // Pair by exact time stamp (both lists strictly increase): a merge.
     std::size_t i = 0, j = 0, only0 = 0, only1 = 0;
@@ -269,6 +230,13 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
           d.mav0_, 0,
           "cam0 and cam1 share no time stamp: no stereo frame (open with use_cam1 = false for mono)");
   }
+  if (!chain.timeshift_cam_imu_s.empty() && chain.timeshift_cam_imu_s[0] != 0.0) {
+    // Kalibr: t_imu = t_cam + timeshift_cam_imu. Frames are reported on the IMU clock.
+    const Timestamp shift = fromSeconds(chain.timeshift_cam_imu_s[0]);
+    for (auto& f : d.frames_) f.t += shift;
+    d.warnings_.push_back("image time stamps shifted by " + std::to_string(shift) +
+                          " ns onto the IMU clock (camchain timeshift_cam_imu)");
+  }
   if (d.frames_.front().t < d.imu_.front().t || d.frames_.back().t > d.imu_.back().t)
     d.warnings_.push_back("images extend beyond the IMU log (first/last image outside the IMU time span)");
 
@@ -278,8 +246,9 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
     Pose T_B_S;
     if (fs::exists(gt_dir / "sensor.yaml", ec)) {
       const std::string gt_yaml = (gt_dir / "sensor.yaml").string();
-      const YAML::Node root = loadSensorYaml(gt_yaml);
-      if (const YAML::Node t = root["T_BS"]) yaml::decode(t, yaml::Context{gt_yaml, "T_BS", true}, T_B_S);
+      const YAML::Node root = loadYamlFile(gt_yaml);
+      if (root.IsMap() && root["T_BS"])
+        yaml::decode(root["T_BS"], yaml::Context{gt_yaml, "T_BS", true}, T_B_S);
     }
     // Rows give T_W_S of the tracked sensor S; the body (IMU) pose is T_W_I = T_W_S * T_S_B * T_B_I.
     const Pose T_S_I = T_B_S.inverse() * T_B_I;

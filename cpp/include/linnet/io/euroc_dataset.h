@@ -24,6 +24,7 @@
 #include "linnet/core/pose.h"
 #include "linnet/core/types.h"
 #include "linnet/imu/imu_types.h"
+#include "linnet/io/kalibr_yaml.h"
 #include "linnet/io/trajectory_io.h"
 
 namespace linnet {
@@ -40,17 +41,23 @@ struct StereoFrameRef {
 using GroundTruthState = TrajectoryState;
 
 struct EurocOpenOptions {
-  bool use_cam1 = true;           // read cam1 when present (false: monocular)
-  bool check_images = true;       // every listed image must exist on disk
-  bool load_ground_truth = true;  // read state_groundtruth_estimate0 when present
-  int threads = 0;  // csv parsing threads for large files (0: all cores); the result does not depend on it
+  bool use_cam1 = true;              // read cam1 when present (false: monocular)
+  bool check_images = true;          // every listed image must exist on disk
+  bool drop_missing_images = false;  // drop rows whose image is missing (warning) instead of failing
+  bool load_ground_truth = true;     // read state_groundtruth_estimate0 when present
+  int threads = 0;                   // csv parsing threads (0: all cores); same result for any count
+  std::string camchain;  // Kalibr camchain.yaml to use instead of camN/sensor.yaml ("": sensor.yaml)
+  std::string imu_yaml;  // Kalibr imu.yaml to use instead of imu0/sensor.yaml ("": sensor.yaml)
 
   template <class V>
   void visit(V& v) {
     v("use_cam1", use_cam1, "read cam1 when present (false: monocular)");
     v("check_images", check_images, "every image listed in data.csv must exist");
+    v("drop_missing_images", drop_missing_images, "drop rows whose image is missing instead of failing");
     v("load_ground_truth", load_ground_truth, "read state_groundtruth_estimate0 when present");
     v("threads", threads, "csv parsing threads (0: all cores)", 0, 64);
+    v("camchain", camchain, "Kalibr camchain.yaml instead of camN/sensor.yaml (empty: sensor.yaml)");
+    v("imu_yaml", imu_yaml, "Kalibr imu.yaml instead of imu0/sensor.yaml (empty: sensor.yaml)");
   }
 };
 
@@ -93,15 +100,6 @@ class EurocDataset {
   std::vector<GroundTruthState> ground_truth_;
   std::vector<std::string> warnings_;
 };
-
-/// One camera's Kalibr/EuRoC sensor.yaml -> calibration (T_B_C = T_BS). distortion_model "radial-tangential"
-/// and "radtan" -> "radtan"; "equidistant" / "fisheye" -> "equidistant"; "none" -> "none". InputError naming
-/// file and key.
-CameraCalibration readCameraSensorYaml(const std::string& path);
-
-/// imu0 sensor.yaml -> noise parameters (gravity keeps its default). T_B_S (the IMU in the body frame) is
-/// returned through `T_B_S` when given (identity if the file has no T_BS).
-ImuNoise readImuSensorYaml(const std::string& path, Pose* T_B_S = nullptr);
 
 /// A EuRoC camera data.csv: (time stamp, file name) rows, strictly increasing in time.
 struct CameraCsvRow {
