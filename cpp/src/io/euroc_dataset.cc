@@ -192,7 +192,9 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
   d.cam0_ = cam0.calib;
   if (cam0.rows.empty()) io::failInput((mav0 / "cam0" / "data.csv").string(), 0, "no images listed");
 
-  const bool want_cam1 = options.use_cam1 && fs::is_directory(mav0 / "cam1", ec);
+  // A camchain with one camera makes the dataset monocular even if it has a cam1 folder.
+  const bool want_cam1 = options.use_cam1 && fs::is_directory(mav0 / "cam1", ec) &&
+                         (options.camchain.empty() || chain.cameras.size() >= 2);
   if (!want_cam1) {
     d.frames_.reserve(cam0.rows.size());
     for (const auto& r : cam0.rows) d.frames_.push_back({r.t, (cam0.data_dir / r.filename).string(), ""});

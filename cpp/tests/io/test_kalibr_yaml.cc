@@ -188,6 +188,15 @@ TEST(KalibrYaml, DatasetWithCamchainInsteadOfSensorYaml) {
   ASSERT_EQ(d.warnings().size(), 1u);
   EXPECT_NE(d.warnings()[0].find("shifted by 2000000 ns"), std::string::npos) << d.warnings()[0];
 
+  // A camchain with cam0 only: monocular, although the folder has cam1.
+  std::ofstream(root / "mono.yaml") << camEntry(
+      "cam0", c0, "  T_cam_imu:\n" + kalibrMatrix(c0.T_B_C.inverse(), "  "), 0.0);
+  o.camchain = (root / "mono.yaml").string();
+  const EurocDataset m = EurocDataset::open(root.string(), o);
+  EXPECT_FALSE(m.stereo());
+  EXPECT_EQ(m.frames()[0].t, 1403715273262142976);
+  EXPECT_TRUE(m.frames()[0].right_path.empty());
+
   // Without the camchain the missing sensor.yaml is reported.
   try {
     EurocDataset::open(root.string());
