@@ -23,12 +23,12 @@ using Mat15x9RowMajor = Eigen::Matrix<double, 15, 9, Eigen::RowMajor>;
 struct Terms {
   Vec3 p_i, v_i, b_a_i, b_g_i, p_j, v_j, b_a_j, b_g_j;
   Quat q_i, q_j;
-  Mat3 Rt_i;       // R_i^T
-  Vec3 dP, dV;     // p_j - p_i - v_i T - g T^2/2,  v_j - v_i - g T
-  ImuDelta corr;   // bias-corrected deltas
-  Vec3 phi;        // J_theta_bg dbg, the rotation correction
-  Quat e;          // gamma_c^-1 q_i^-1 q_j
-  Vec15 r;         // unweighted residual
+  Mat3 Rt_i;      // R_i^T
+  Vec3 dP, dV;    // p_j - p_i - v_i T - g T^2/2,  v_j - v_i - g T
+  ImuDelta corr;  // bias-corrected deltas
+  Vec3 phi;       // J_theta_bg dbg, the rotation correction
+  Quat e;         // gamma_c^-1 q_i^-1 q_j
+  Vec15 r;        // unweighted residual
 };
 
 Mat4 leftMultiplication(const Quat& q) { return quatLeft(q); }    // (w, x, y, z) order
@@ -41,7 +41,8 @@ Mat15 sqrtInformationOf(const Mat15& covariance) {
   const Mat15 sym = 0.5 * (covariance + covariance.transpose());
   Eigen::SelfAdjointEigenSolver<Mat15> es(sym);
   const double lmax = es.eigenvalues().maxCoeff();
-  if (!(lmax > 0.0)) throw UsageError("ImuFactor: preintegration covariance is zero (empty interval or zero noise)");
+  if (!(lmax > 0.0))
+    throw UsageError("ImuFactor: preintegration covariance is zero (empty interval or zero noise)");
   const Vec15 lambda = es.eigenvalues().cwiseMax(1e-14 * lmax);
   const Mat15 info = es.eigenvectors() * lambda.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
   const Eigen::LLT<Mat15> llt(0.5 * (info + info.transpose()));
@@ -61,8 +62,7 @@ ImuFactor::ImuFactor(const Preintegration& preintegration, const Vec3& g_W)
 }
 
 ImuFactor::ImuFactor(std::shared_ptr<const Preintegration> preintegration, const Vec3& g_W)
-    : ImuFactor((preintegration ? *preintegration
-                                : throw UsageError("ImuFactor: null preintegration")),
+    : ImuFactor((preintegration ? *preintegration : throw UsageError("ImuFactor: null preintegration")),
                 g_W) {}
 
 ImuFactor::ImuFactor(std::shared_ptr<const Preintegration> preintegration, double gravity)
@@ -116,8 +116,8 @@ Vec15 ImuFactor::unweightedResidual(const double* pose_i, const double* speed_bi
 
 bool ImuFactor::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
   const double T = sum_dt_;
-  const Terms t = computeTerms(parameters[0], parameters[1], parameters[2], parameters[3], delta_, bias_jacobian_,
-                               b_a_lin_, b_g_lin_, T, g_W_);
+  const Terms t = computeTerms(parameters[0], parameters[1], parameters[2], parameters[3], delta_,
+                               bias_jacobian_, b_a_lin_, b_g_lin_, T, g_W_);
   Eigen::Map<Vec15> r(residuals);
   r = sqrt_info_ * t.r;
   if (jacobians == nullptr) return true;
@@ -130,9 +130,9 @@ bool ImuFactor::Evaluate(double const* const* parameters, double* residuals, dou
     Jt.block<3, 3>(kP, 0) = -t.Rt_i;
     Jt.block<3, 3>(kP, 3) = skew(t.Rt_i * t.dP);
     // e(dtheta) = gamma_c^-1 Exp(-dtheta) q_i^-1 q_j  ->  d(2 vec e) = -[L(gamma_c^-1) R(q_i^-1 q_j)]_xyz,xyz
-    Jt.block<3, 3>(kR, 3) = -(leftMultiplication(t.corr.gamma.conjugate()) *
-                              rightMultiplication(t.q_i.conjugate() * t.q_j))
-                                 .bottomRightCorner<3, 3>();
+    Jt.block<3, 3>(kR, 3) =
+        -(leftMultiplication(t.corr.gamma.conjugate()) * rightMultiplication(t.q_i.conjugate() * t.q_j))
+             .bottomRightCorner<3, 3>();
     Jt.block<3, 3>(kV, 3) = skew(t.Rt_i * t.dV);
     const Mat15x6 Jw = sqrt_info_ * Jt;
     tangentToAmbientPose<15>(Jw, parameters[0], jacobians[0]);
@@ -143,8 +143,8 @@ bool ImuFactor::Evaluate(double const* const* parameters, double* residuals, dou
     Js.block<3, 3>(kP, 3) = -J.block<3, 3>(kP, kBa);
     Js.block<3, 3>(kP, 6) = -J.block<3, 3>(kP, kBg);
     // gamma_c(b_g + d) ~= gamma_c Exp(Jr(phi) J_theta_bg d)  ->  e ~= Exp(-Jr J d) e
-    Js.block<3, 3>(kR, 6) =
-        -rightMultiplication(t.e).bottomRightCorner<3, 3>() * rightJacobianSO3(t.phi) * J.block<3, 3>(kR, kBg);
+    Js.block<3, 3>(kR, 6) = -rightMultiplication(t.e).bottomRightCorner<3, 3>() * rightJacobianSO3(t.phi) *
+                            J.block<3, 3>(kR, kBg);
     Js.block<3, 3>(kV, 0) = -t.Rt_i;
     Js.block<3, 3>(kV, 3) = -J.block<3, 3>(kV, kBa);
     Js.block<3, 3>(kV, 6) = -J.block<3, 3>(kV, kBg);

@@ -55,8 +55,9 @@ ImuSample interpolateSample(const ImuSample& a, const ImuSample& b, Timestamp t)
 
 ImuSample ImuBuffer::sampleAt(Timestamp t) const {
   if (!covers(t, t))
-    throw UsageError("ImuBuffer::sampleAt: t=" + std::to_string(t) + " ns is outside the buffered IMU data [" +
-                     std::to_string(startTime()) + ", " + std::to_string(endTime()) + "] ns");
+    throw UsageError("ImuBuffer::sampleAt: t=" + std::to_string(t) +
+                     " ns is outside the buffered IMU data [" + std::to_string(startTime()) + ", " +
+                     std::to_string(endTime()) + "] ns");
   const std::size_t i = lastAtOrBefore(t);
   if (samples_[i].t == t || i + 1 == samples_.size()) return samples_[i];
   return interpolateSample(samples_[i], samples_[i + 1], t);
@@ -64,8 +65,8 @@ ImuSample ImuBuffer::sampleAt(Timestamp t) const {
 
 std::vector<ImuSample> ImuBuffer::samplesBetween(Timestamp t0, Timestamp t1) const {
   if (t0 > t1)
-    throw UsageError("ImuBuffer::samplesBetween: t0=" + std::to_string(t0) + " ns is after t1=" +
-                     std::to_string(t1) + " ns");
+    throw UsageError("ImuBuffer::samplesBetween: t0=" + std::to_string(t0) +
+                     " ns is after t1=" + std::to_string(t1) + " ns");
   if (!covers(t0, t1))
     throw UsageError("ImuBuffer::samplesBetween: [" + std::to_string(t0) + ", " + std::to_string(t1) +
                      "] ns is not covered by the buffered IMU data [" + std::to_string(startTime()) + ", " +

@@ -124,9 +124,9 @@ void Preintegration::append(const Preintegration& next) {
     return;
   }
   if (next.startTime() != endTime())
-    throw UsageError("Preintegration::append: the next preintegration starts at t=" +
-                     std::to_string(next.startTime()) + " ns, this one ends at t=" + std::to_string(endTime()) +
-                     " ns");
+    throw UsageError(
+        "Preintegration::append: the next preintegration starts at t=" + std::to_string(next.startTime()) +
+        " ns, this one ends at t=" + std::to_string(endTime()) + " ns");
   samples_.reserve(samples_.size() + next.samples_.size() - 1);
   for (size_t k = 1; k < next.samples_.size(); ++k) push(next.samples_[k]);
 }
@@ -142,12 +142,16 @@ ImuDelta Preintegration::correctedDelta(const Vec3& b_a, const Vec3& b_g) const 
 }
 
 bool Preintegration::biasMovedFar(const Vec3& b_a, const Vec3& b_g) const {
-  return (b_a - b_a_).norm() > options_.max_acc_bias_change || (b_g - b_g_).norm() > options_.max_gyr_bias_change;
+  return (b_a - b_a_).norm() > options_.max_acc_bias_change ||
+         (b_g - b_g_).norm() > options_.max_gyr_bias_change;
 }
 
 ImuState Preintegration::predict(const ImuState& state_i) const {
+  return predict(state_i, noise_.gravityVector());
+}
+
+ImuState Preintegration::predict(const ImuState& state_i, const Vec3& g) const {
   const ImuDelta d = correctedDelta(state_i.b_a, state_i.b_g);
-  const Vec3 g = noise_.gravityVector();
   const double T = sum_dt_;
   const Quat& q_i = state_i.T_W_B.q;
   ImuState s = state_i;

@@ -46,13 +46,14 @@ TEST(ImuFactor, ResidualVanishesOnTheTrueMotion) {
   // Linearised at zero bias: the factor must correct to the state's biases to first order.
   for (const double s : {1.0, 0.9}) {
     const Vec3 lin_scale = Vec3::Constant(s);
-    const auto pre = std::make_shared<Preintegration>(m.samples(200 * kMs, 700 * kMs, 5 * kMs, b_a, b_g), noise,
-                                                      b_a.cwiseProduct(lin_scale), b_g.cwiseProduct(lin_scale));
+    const auto pre =
+        std::make_shared<Preintegration>(m.samples(200 * kMs, 700 * kMs, 5 * kMs, b_a, b_g), noise,
+                                         b_a.cwiseProduct(lin_scale), b_g.cwiseProduct(lin_scale));
     const ImuFactor f(pre, noise.gravityVector());
     Blocks b = blocksFrom(m.state(200 * kMs, b_a, b_g), m.state(700 * kMs, b_a, b_g));
     const Vec15 r = f.unweightedResidual(b.pose_i, b.sb_i, b.pose_j, b.sb_j);
-    std::printf("  true motion, linearised at %.1f x bias: |r_p| %.3g |r_theta| %.3g |r_v| %.3g\n", lin_scale.x(),
-                r.segment<3>(0).norm(), r.segment<3>(3).norm(), r.segment<3>(6).norm());
+    std::printf("  true motion, linearised at %.1f x bias: |r_p| %.3g |r_theta| %.3g |r_v| %.3g\n",
+                lin_scale.x(), r.segment<3>(0).norm(), r.segment<3>(3).norm(), r.segment<3>(6).norm());
     EXPECT_LT(r.segment<3>(0).norm(), 1e-5);
     EXPECT_LT(r.segment<3>(3).norm(), 1e-5);
     EXPECT_LT(r.segment<3>(6).norm(), 2e-5);
@@ -67,8 +68,8 @@ TEST(ImuFactor, ResidualVanishesOnTheTrueMotion) {
 
 TEST(ImuFactor, SqrtInformationWhitensTheCovariance) {
   const testing::SmoothMotion m;
-  const auto pre = std::make_shared<Preintegration>(m.samples(0, 300 * kMs, 5 * kMs), ImuNoise(), Vec3::Zero(),
-                                                    Vec3::Zero());
+  const auto pre = std::make_shared<Preintegration>(m.samples(0, 300 * kMs, 5 * kMs), ImuNoise(),
+                                                    Vec3::Zero(), Vec3::Zero());
   const ImuFactor f(pre, 9.81);
   const Mat15& S = f.sqrtInformation();
   EXPECT_TRUE(S.isUpperTriangular(1e-12));
@@ -87,9 +88,9 @@ TEST(ImuFactor, JacobiansPassTheCheckerAtRandomStates) {
   for (int trial = 0; trial < 10; ++trial) {
     const Vec3 b_a_lin = rnd3(0.1), b_g_lin = rnd3(0.01);
     const Timestamp t0 = (100 + 37 * trial) * kMs;
-    const auto pre = std::make_shared<Preintegration>(m.samples(t0, t0 + (100 + 40 * trial) * kMs, 5 * kMs,
-                                                                rnd3(0.1), rnd3(0.01)),
-                                                      noise, b_a_lin, b_g_lin);
+    const auto pre = std::make_shared<Preintegration>(
+        m.samples(t0, t0 + (100 + 40 * trial) * kMs, 5 * kMs, rnd3(0.1), rnd3(0.01)), noise, b_a_lin,
+        b_g_lin);
     const ImuFactor f(pre, noise.gravityVector());
     // Random states (not consistent with the measurements: residuals far from zero), biases away from b_lin.
     ImuState si, sj;
@@ -102,7 +103,8 @@ TEST(ImuFactor, JacobiansPassTheCheckerAtRandomStates) {
     sj.b_a = rnd3(0.1);
     sj.b_g = rnd3(0.01);
     Blocks b = blocksFrom(si, sj);
-    // Whitened residuals reach 1e5 here, so round-off in the differences is ~1e-6 absolute: step 1e-5, tol 1e-5.
+    // Whitened residuals reach 1e5 here, so round-off in the differences is ~1e-6 absolute: step 1e-5, tol
+    // 1e-5.
     const auto res =
         testing::checkJacobians(f, b.ptrs(), {&pose_manifold, nullptr, &pose_manifold, nullptr}, 1e-5);
     worst = std::max(worst, res.maxRelError());
@@ -129,7 +131,8 @@ TEST(ImuFactor, SolvesForTheSecondStateGivenTheFirst) {
   b.sb_j[4] += 0.1;
 
   ceres::Problem problem;
-  problem.AddResidualBlock(new ImuFactor(pre, noise.gravityVector()), nullptr, b.pose_i, b.sb_i, b.pose_j, b.sb_j);
+  problem.AddResidualBlock(new ImuFactor(pre, noise.gravityVector()), nullptr, b.pose_i, b.sb_i, b.pose_j,
+                           b.sb_j);
   problem.SetManifold(b.pose_i, new PoseManifold);
   problem.SetManifold(b.pose_j, new PoseManifold);
   problem.SetParameterBlockConstant(b.pose_i);
@@ -154,8 +157,8 @@ TEST(ImuFactor, RejectsEmptyPreintegration) {
   EXPECT_THROW(ImuFactor(std::shared_ptr<const Preintegration>(), 9.81), UsageError);
   ImuNoise silent;
   silent.acc_noise_density = silent.gyr_noise_density = silent.acc_random_walk = silent.gyr_random_walk = 0.0;
-  const Preintegration zero({{0, Vec3(0, 0, 9.81), Vec3::Zero()}, {5 * kMs, Vec3(0, 0, 9.81), Vec3::Zero()}}, silent,
-                            Vec3::Zero(), Vec3::Zero());
+  const Preintegration zero({{0, Vec3(0, 0, 9.81), Vec3::Zero()}, {5 * kMs, Vec3(0, 0, 9.81), Vec3::Zero()}},
+                            silent, Vec3::Zero(), Vec3::Zero());
   EXPECT_THROW(ImuFactor(zero, silent.gravityVector()), UsageError);
 }
 

@@ -110,8 +110,8 @@ TEST(JacobianChecker, LeavesParametersUntouched) {
 TEST(JacobianChecker, FailsOnEveryInjectedBug) {
   const PoseManifold pm;
   Fixture fx(11);
-  for (Bug bug : {Bug::kOneEntry, Bug::kOneColumn, Bug::kRotationSign, Bug::kLeftPerturbation, Bug::kSkipsResidual,
-                  Bug::kUnwritten}) {
+  for (Bug bug : {Bug::kOneEntry, Bug::kOneColumn, Bug::kRotationSign, Bug::kLeftPerturbation,
+                  Bug::kSkipsResidual, Bug::kUnwritten}) {
     const PoseLandmarkFactor f(fx.q_ref, bug);
     const auto res = checkJacobians(f, {fx.pose, fx.landmark}, {&pm, nullptr});
     EXPECT_FALSE(res.ok(1e-4)) << "bug " << static_cast<int>(bug) << " not detected:\n" << res.describe();
@@ -151,7 +151,8 @@ TEST(JacobianChecker, AmbientPoseJacobianIsAlsoTheEuclideanDerivative) {
   // Euclidean "manifold"; with a wrong rotation Jacobian it must still fail.
   Fixture fx(9);
   EXPECT_TRUE(checkJacobians(PoseLandmarkFactor(fx.q_ref, Bug::kNone), {fx.pose, fx.landmark}, {}).ok(1e-7));
-  EXPECT_FALSE(checkJacobians(PoseLandmarkFactor(fx.q_ref, Bug::kRotationSign), {fx.pose, fx.landmark}, {}).ok(1e-4));
+  EXPECT_FALSE(
+      checkJacobians(PoseLandmarkFactor(fx.q_ref, Bug::kRotationSign), {fx.pose, fx.landmark}, {}).ok(1e-4));
 }
 
 TEST(JacobianChecker, ReportsStructuralMisuse) {

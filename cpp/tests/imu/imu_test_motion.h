@@ -13,11 +13,11 @@
 namespace linnet::testing {
 
 struct SmoothMotion {
-  Vec3 amp = Vec3(1.0, 0.8, 0.3);        // m
-  Vec3 freq = Vec3(0.7, 0.5, 0.9);       // rad/s
-  Vec3 rot_amp = Vec3(0.3, 0.2, 0.0);    // rad
-  Vec3 rot_freq = Vec3(0.8, 1.1, 0.0);   // rad/s
-  double yaw_rate = 0.4;                 // rad/s
+  Vec3 amp = Vec3(1.0, 0.8, 0.3);       // m
+  Vec3 freq = Vec3(0.7, 0.5, 0.9);      // rad/s
+  Vec3 rot_amp = Vec3(0.3, 0.2, 0.0);   // rad
+  Vec3 rot_freq = Vec3(0.8, 1.1, 0.0);  // rad/s
+  double yaw_rate = 0.4;                // rad/s
   Vec3 p0 = Vec3(0.5, -1.0, 1.2);
   Quat R0 = Quat(Eigen::AngleAxisd(0.3, Vec3(0.2, 0.3, 1.0).normalized()));
   double gravity = 9.81;

@@ -1,4 +1,5 @@
-// Preintegration: closed-form motions, prediction, bias-correction Jacobians, covariance, merge, repropagation.
+// Preintegration: closed-form motions, prediction, bias-correction Jacobians, covariance, merge,
+// repropagation.
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -32,7 +33,8 @@ void closedForm(const Vec3& w, const Vec3& a, double t, Vec3* alpha, Vec3* beta,
   *gamma = expSO3(w * t);
 }
 
-std::vector<ImuSample> constantSamples(const Vec3& acc, const Vec3& gyr, Timestamp t0, Timestamp t1, Timestamp dt) {
+std::vector<ImuSample> constantSamples(const Vec3& acc, const Vec3& gyr, Timestamp t0, Timestamp t1,
+                                       Timestamp dt) {
   std::vector<ImuSample> out;
   for (Timestamp t = t0; t <= t1; t += dt) out.push_back({t, acc, gyr});
   return out;
@@ -118,10 +120,13 @@ TEST(Preintegration, BiasJacobiansMatchRepropagation) {
     const Vec3 d_alpha = (plus.alpha() - minus.alpha()) / (2 * h);
     const Vec3 d_beta = (plus.beta() - minus.beta()) / (2 * h);
     const Vec3 d_theta = logSO3(minus.gamma().conjugate() * plus.gamma()) / (2 * h);
-    EXPECT_LT((pre.jacobian().block<3, 1>(Preintegration::kP, col) - d_alpha).norm(), 1e-5 * (1 + d_alpha.norm()));
-    EXPECT_LT((pre.jacobian().block<3, 1>(Preintegration::kV, col) - d_beta).norm(), 1e-5 * (1 + d_beta.norm()));
+    EXPECT_LT((pre.jacobian().block<3, 1>(Preintegration::kP, col) - d_alpha).norm(),
+              1e-5 * (1 + d_alpha.norm()));
+    EXPECT_LT((pre.jacobian().block<3, 1>(Preintegration::kV, col) - d_beta).norm(),
+              1e-5 * (1 + d_beta.norm()));
     // dgamma/dbg is evaluated at the linearisation point: compare in the tangent of gamma.
-    EXPECT_LT((pre.jacobian().block<3, 1>(Preintegration::kR, col) - d_theta).norm(), 1e-5 * (1 + d_theta.norm()));
+    EXPECT_LT((pre.jacobian().block<3, 1>(Preintegration::kR, col) - d_theta).norm(),
+              1e-5 * (1 + d_theta.norm()));
   }
 
   // First-order correction: the residual error shrinks quadratically with the bias change.
@@ -134,7 +139,8 @@ TEST(Preintegration, BiasJacobiansMatchRepropagation) {
     const double err = (corr.alpha - re.alpha()).norm() + (corr.beta - re.beta()).norm() +
                        corr.gamma.angularDistance(re.gamma());
     const double change = (pre.alpha() - re.alpha()).norm() + (pre.beta() - re.beta()).norm();
-    std::printf("  bias change x%.2f: first-order correction error %.3g (delta change %.3g)\n", scale, err, change);
+    std::printf("  bias change x%.2f: first-order correction error %.3g (delta change %.3g)\n", scale, err,
+                change);
     EXPECT_LT(err, 0.05 * change);
     if (previous > 0.0) {
       EXPECT_LT(err, 0.3 * previous);

@@ -104,10 +104,13 @@ JacobianCheckResult checkJacobians(const ceres::CostFunction& f, const std::vect
     return result;
   }
   if (!manifolds.empty() && manifolds.size() != nb) {
-    result.problem = "got " + std::to_string(manifolds.size()) + " manifolds for " + std::to_string(nb) + " blocks";
+    result.problem =
+        "got " + std::to_string(manifolds.size()) + " manifolds for " + std::to_string(nb) + " blocks";
     return result;
   }
-  auto manifoldOf = [&](size_t b) -> const ceres::Manifold* { return manifolds.empty() ? nullptr : manifolds[b]; };
+  auto manifoldOf = [&](size_t b) -> const ceres::Manifold* {
+    return manifolds.empty() ? nullptr : manifolds[b];
+  };
   for (size_t b = 0; b < nb; ++b) {
     const ceres::Manifold* m = manifoldOf(b);
     if (m != nullptr && m->AmbientSize() != sizes[b]) {
@@ -147,7 +150,8 @@ JacobianCheckResult checkJacobians(const ceres::CostFunction& f, const std::vect
     const Evaluation partial = evaluate(f, ptrs, want);
     bool same = partial.ok && sameNumbers(partial.residuals, full.residuals);
     for (size_t b = 0; b < nb && same; ++b)
-      if (b != skip && full.jacobians[b].allFinite()) same = sameNumbers(partial.jacobians[b], full.jacobians[b]);
+      if (b != skip && full.jacobians[b].allFinite())
+        same = sameNumbers(partial.jacobians[b], full.jacobians[b]);
     if (!same) {
       result.residuals_consistent = false;
       result.problem = "residuals or Jacobians change when the Jacobian of block " + std::to_string(skip) +

@@ -1,15 +1,16 @@
 // The one Jacobian checker every factor test calls (DESIGN A5).
 //
 // checkJacobians() evaluates a ceres::CostFunction's analytic Jacobians, maps each block to its tangent space
-// (J_ambient * PlusJacobian(x), the product Ceres itself forms), and compares them with central differences taken
-// through Manifold::Plus (x + h e_k for Euclidean blocks):
+// (J_ambient * PlusJacobian(x), the product Ceres itself forms), and compares them with central differences
+// taken through Manifold::Plus (x + h e_k for Euclidean blocks):
 //     numeric(:, k) = (r(Plus(x, h e_k)) - r(Plus(x, -h e_k))) / (2 h).
-// It also checks that the residuals do not depend on which Jacobians were requested (all, none, or all but one
-// block: Ceres passes nullptr for constant blocks) and that every requested Jacobian entry was written (the buffers
-// are pre-filled with NaN).
+// It also checks that the residuals do not depend on which Jacobians were requested (all, none, or all but
+// one block: Ceres passes nullptr for constant blocks) and that every requested Jacobian entry was written
+// (the buffers are pre-filled with NaN).
 //
-// Error measures per block: max_abs_error = max |a - n| over entries; max_rel_error = max |a - n| / max(1, |a|, |n|)
-// over entries (relative for large entries, absolute for entries below 1, which suits whitened residuals).
+// Error measures per block: max_abs_error = max |a - n| over entries; max_rel_error = max |a - n| / max(1,
+// |a|, |n|) over entries (relative for large entries, absolute for entries below 1, which suits whitened
+// residuals).
 //
 //   EXPECT_TRUE(linnet::testing::jacobiansMatch(factor, {pose_i, sb_i}, {&pose_manifold, nullptr}, 1e-6));
 #pragma once
@@ -26,16 +27,16 @@
 namespace linnet::testing {
 
 struct BlockJacobianError {
-  int block = 0;              // parameter block index
-  int ambient_size = 0;       // block size as Ceres sees it
-  int tangent_size = 0;       // columns of the compared Jacobians
-  double max_abs_error = 0.0; // max |analytic - numeric|
-  double max_rel_error = 0.0; // max |analytic - numeric| / max(1, |analytic|, |numeric|)
-  int worst_row = -1;         // entry with the largest relative error
+  int block = 0;               // parameter block index
+  int ambient_size = 0;        // block size as Ceres sees it
+  int tangent_size = 0;        // columns of the compared Jacobians
+  double max_abs_error = 0.0;  // max |analytic - numeric|
+  double max_rel_error = 0.0;  // max |analytic - numeric| / max(1, |analytic|, |numeric|)
+  int worst_row = -1;          // entry with the largest relative error
   int worst_col = -1;
-  bool finite = true;         // every analytic entry written and finite
-  Eigen::MatrixXd analytic;   // residuals x tangent (J_ambient * PlusJacobian)
-  Eigen::MatrixXd numeric;    // residuals x tangent (central differences through Plus)
+  bool finite = true;        // every analytic entry written and finite
+  Eigen::MatrixXd analytic;  // residuals x tangent (J_ambient * PlusJacobian)
+  Eigen::MatrixXd numeric;   // residuals x tangent (central differences through Plus)
 };
 
 struct JacobianCheckResult {
@@ -49,13 +50,13 @@ struct JacobianCheckResult {
   double maxRelError() const;
   /// evaluated, consistent, all entries finite and every block's max_rel_error <= tol.
   bool ok(double tol) const;
-  /// One line per block (and the structural problem, if any); with `matrices`, the analytic and numeric Jacobians
-  /// of blocks whose relative error exceeds `tol`.
+  /// One line per block (and the structural problem, if any); with `matrices`, the analytic and numeric
+  /// Jacobians of blocks whose relative error exceeds `tol`.
   std::string describe(double tol = 0.0, bool matrices = false) const;
 };
 
-/// Compares analytic and numeric Jacobians. `manifolds` is empty (all Euclidean) or has one entry per parameter
-/// block, nullptr meaning Euclidean. `params` are not modified. `step` is the tangent step h.
+/// Compares analytic and numeric Jacobians. `manifolds` is empty (all Euclidean) or has one entry per
+/// parameter block, nullptr meaning Euclidean. `params` are not modified. `step` is the tangent step h.
 JacobianCheckResult checkJacobians(const ceres::CostFunction& f, const std::vector<double*>& params,
                                    const std::vector<const ceres::Manifold*>& manifolds, double step = 1e-6);
 

@@ -5,12 +5,12 @@
 //   speed-bias  double[9] = [v_W (3), b_a (3), b_g (3)]     Euclidean
 //   inverse depth double[1]                                  Euclidean
 //
-// PoseManifold: tangent [dp, dtheta] (6), Plus(x, d) = (p + dp, q * Exp(dtheta)) -- the position is perturbed in W,
-// the rotation on the right (DESIGN A3). Minus(y, x) = (p_y - p_x, Log(q_x^-1 q_y)).
+// PoseManifold: tangent [dp, dtheta] (6), Plus(x, d) = (p + dp, q * Exp(dtheta)) -- the position is perturbed
+// in W, the rotation on the right (DESIGN A3). Minus(y, x) = (p_y - p_x, Log(q_x^-1 q_y)).
 //
-// Factors compute Jacobians in the tangent space (R x 6) and convert them with tangentToAmbientPose(), which returns
-// an ambient (R x 7) Jacobian J_a with J_a * PlusJacobian(x) == J_tangent, so Ceres (which multiplies by the
-// PlusJacobian) sees exactly the tangent Jacobian.
+// Factors compute Jacobians in the tangent space (R x 6) and convert them with tangentToAmbientPose(), which
+// returns an ambient (R x 7) Jacobian J_a with J_a * PlusJacobian(x) == J_tangent, so Ceres (which multiplies
+// by the PlusJacobian) sees exactly the tangent Jacobian.
 #pragma once
 
 #include <ceres/manifold.h>
@@ -58,8 +58,8 @@ inline void setPose(const Pose& T, double* pose) {
   q_out = T.q.normalized();
 }
 
-/// 4 x 3 matrix L with q' coeffs ~= q coeffs + L dtheta for q' = q * Exp(dtheta), coeffs in (x, y, z, w) order.
-/// It is the rotation part of PoseManifold's PlusJacobian.
+/// 4 x 3 matrix L with q' coeffs ~= q coeffs + L dtheta for q' = q * Exp(dtheta), coeffs in (x, y, z, w)
+/// order. It is the rotation part of PoseManifold's PlusJacobian.
 inline Eigen::Matrix<double, 4, 3> quatPlusJacobian(const Quat& q) {
   // q * [1, d/2] = q + 0.5 * (q.w d + q.vec x d, -q.vec . d)
   Eigen::Matrix<double, 4, 3> L;
@@ -68,10 +68,11 @@ inline Eigen::Matrix<double, 4, 3> quatPlusJacobian(const Quat& q) {
   return L;
 }
 
-/// Ambient (R x 7, row-major) Jacobian from a tangent Jacobian (R x 6) w.r.t. [dp, dtheta] of the pose block `pose`.
-/// J_ambient = [J_dp, 4 J_dtheta Lq^T]: since Lq^T Lq = I/4 for a unit q, J_ambient * PlusJacobian(pose) equals
-/// J_tangent exactly. The component along q itself is zero (the residual is treated as independent of |q|).
-/// R may be Eigen::Dynamic. (Row-major is what Ceres passes to CostFunction::Evaluate.)
+/// Ambient (R x 7, row-major) Jacobian from a tangent Jacobian (R x 6) w.r.t. [dp, dtheta] of the pose block
+/// `pose`. J_ambient = [J_dp, 4 J_dtheta Lq^T]: since Lq^T Lq = I/4 for a unit q, J_ambient *
+/// PlusJacobian(pose) equals J_tangent exactly. The component along q itself is zero (the residual is treated
+/// as independent of |q|). R may be Eigen::Dynamic. (Row-major is what Ceres passes to
+/// CostFunction::Evaluate.)
 template <int R>
 void tangentToAmbientPose(const Eigen::Matrix<double, R, 6>& J_tangent, const double* pose,
                           double* J_ambient_rowmajor) {

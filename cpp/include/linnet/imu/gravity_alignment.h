@@ -1,5 +1,5 @@
-// Static IMU initialisation helpers: statistics of a window of samples, a stillness test, and the rotation that
-// aligns the measured specific force with +z of W (DESIGN B1, thesis ch. 5: static gravity alignment).
+// Static IMU initialisation helpers: statistics of a window of samples, a stillness test, and the rotation
+// that aligns the measured specific force with +z of W (DESIGN B1, thesis ch. 5: static gravity alignment).
 #pragma once
 
 #include <vector>
@@ -10,11 +10,12 @@
 namespace linnet {
 
 struct StaticDetectionOptions {
-  double max_acc_std = 0.25;   // m/s^2: largest per-axis standard deviation of the accelerometer when static
-  double max_gyr_std = 0.02;   // rad/s: largest per-axis standard deviation of the gyroscope when static
-  double max_gyr_mean = 0.1;   // rad/s: largest mean angular rate norm when static (a constant rotation is not rest)
+  double max_acc_std = 0.25;  // m/s^2: largest per-axis standard deviation of the accelerometer when static
+  double max_gyr_std = 0.02;  // rad/s: largest per-axis standard deviation of the gyroscope when static
+  double max_gyr_mean =
+      0.1;  // rad/s: largest mean angular rate norm when static (a constant rotation is not rest)
   double max_gravity_error = 0.5;  // m/s^2: | |mean acc| - gravity | bound when static
-  int min_samples = 10;        // fewer samples is never "static"
+  int min_samples = 10;            // fewer samples is never "static"
 
   template <class V>
   void visit(V& v) {
@@ -35,11 +36,13 @@ struct ImuStatistics {
 
 ImuStatistics imuStatistics(const std::vector<ImuSample>& samples);
 
-/// True if the samples look like a body at rest (variances and mean rate small, |mean acc| close to `gravity`).
-bool isStatic(const std::vector<ImuSample>& samples, const StaticDetectionOptions& options, double gravity = 9.81);
+/// True if the samples look like a body at rest (variances and mean rate small, |mean acc| close to
+/// `gravity`).
+bool isStatic(const std::vector<ImuSample>& samples, const StaticDetectionOptions& options,
+              double gravity = 9.81);
 
-/// R_W_B with zero yaw such that R_W_B * f_B points along +z of W, where f_B is the mean specific force at rest.
-/// Throws InputError if f_B is (near) zero.
+/// R_W_B with zero yaw such that R_W_B * f_B points along +z of W, where f_B is the mean specific force at
+/// rest. Throws InputError if f_B is (near) zero.
 Quat gravityAlignedRotation(const Vec3& mean_specific_force_B);
 
 /// The same from a window of samples (their mean accelerometer reading). Throws InputError if empty.

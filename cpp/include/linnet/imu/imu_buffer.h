@@ -11,7 +11,8 @@
 namespace linnet {
 
 struct ImuBufferOptions {
-  double max_gap_s = 0.05;  // s: a larger interval between consecutive samples is an InputError (EuRoC: 0.005 nominal)
+  double max_gap_s =
+      0.05;  // s: a larger interval between consecutive samples is an InputError (EuRoC: 0.005 nominal)
 
   template <class V>
   void visit(V& v) {
@@ -23,22 +24,24 @@ class ImuBuffer {
  public:
   explicit ImuBuffer(const ImuBufferOptions& options = ImuBufferOptions());
 
-  /// Appends a sample. Throws InputError if its time stamp is not strictly after the previous one or if the gap to
-  /// the previous one exceeds max_gap_s; the message names both time stamps. The buffer is unchanged on error.
+  /// Appends a sample. Throws InputError if its time stamp is not strictly after the previous one or if the
+  /// gap to the previous one exceeds max_gap_s; the message names both time stamps. The buffer is unchanged
+  /// on error.
   void append(const ImuSample& s);
 
   /// True if [t0, t1] lies within [startTime(), endTime()].
   bool covers(Timestamp t0, Timestamp t1) const;
 
-  /// Samples covering [t0, t1]: a sample exactly at t0 (linearly interpolated between its neighbours unless one was
-  /// recorded at t0), every recorded sample strictly inside, and a sample exactly at t1 (likewise). t0 == t1 gives a
-  /// single sample. Throws UsageError if t0 > t1 or the interval is not covered.
+  /// Samples covering [t0, t1]: a sample exactly at t0 (linearly interpolated between its neighbours unless
+  /// one was recorded at t0), every recorded sample strictly inside, and a sample exactly at t1 (likewise).
+  /// t0 == t1 gives a single sample. Throws UsageError if t0 > t1 or the interval is not covered.
   std::vector<ImuSample> samplesBetween(Timestamp t0, Timestamp t1) const;
 
   /// The sample at time t (linear interpolation). Throws UsageError if t is not covered.
   ImuSample sampleAt(Timestamp t) const;
 
-  /// Drops samples no longer needed for intervals starting at or after t (keeps the last sample at or before t).
+  /// Drops samples no longer needed for intervals starting at or after t (keeps the last sample at or before
+  /// t).
   void dropBefore(Timestamp t);
 
   std::size_t size() const { return samples_.size(); }

@@ -15,12 +15,12 @@ struct ImuSample {
 
 /// Continuous-time noise densities (Kalibr / EuRoC imu0 sensor.yaml convention). Defaults: EuRoC ADIS16448.
 struct ImuNoise {
-  double acc_noise_density = 2.0e-3;    // m/s^2/sqrt(Hz)   (accelerometer_noise_density)
-  double gyr_noise_density = 1.6968e-4; // rad/s/sqrt(Hz)   (gyroscope_noise_density)
-  double acc_random_walk = 3.0e-3;      // m/s^3/sqrt(Hz)   (accelerometer_random_walk)
-  double gyr_random_walk = 1.9393e-5;   // rad/s^2/sqrt(Hz) (gyroscope_random_walk)
-  double rate_hz = 200.0;               // nominal sample rate
-  double gravity = 9.81;                // m/s^2, along -z of W
+  double acc_noise_density = 2.0e-3;     // m/s^2/sqrt(Hz)   (accelerometer_noise_density)
+  double gyr_noise_density = 1.6968e-4;  // rad/s/sqrt(Hz)   (gyroscope_noise_density)
+  double acc_random_walk = 3.0e-3;       // m/s^3/sqrt(Hz)   (accelerometer_random_walk)
+  double gyr_random_walk = 1.9393e-5;    // rad/s^2/sqrt(Hz) (gyroscope_random_walk)
+  double rate_hz = 200.0;                // nominal sample rate
+  double gravity = 9.81;                 // m/s^2, along -z of W
 
   template <class V>
   void visit(V& v) {

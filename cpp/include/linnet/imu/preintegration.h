@@ -1,8 +1,9 @@
-// IMU preintegration between two frames i and j (midpoint rule), with first-order bias correction and covariance.
+// IMU preintegration between two frames i and j (midpoint rule), with first-order bias correction and
+// covariance.
 //
 // Following VINS-Mono (Qin et al., T-RO 2018) and Forster et al., "On-Manifold Preintegration for Real-Time
-// Visual-Inertial Odometry" (T-RO 2017). With biases b_a, b_g held at the linearisation point, the deltas in the body
-// frame at i are
+// Visual-Inertial Odometry" (T-RO 2017). With biases b_a, b_g held at the linearisation point, the deltas in
+// the body frame at i are
 //   gamma_{k+1} = gamma_k Exp(w dt),               w = (w_k + w_{k+1}) / 2 - b_g
 //   a           = (gamma_k (a_k - b_a) + gamma_{k+1} (a_{k+1} - b_a)) / 2
 //   alpha_{k+1} = alpha_k + beta_k dt + a dt^2 / 2  (position)
@@ -12,15 +13,16 @@
 // Error state (15), in this order everywhere (also the IMU factor's residual order):
 //   [0,3) d_alpha  [3,6) d_theta (right perturbation: gamma_true = gamma Exp(d_theta))  [6,9) d_beta
 //   [9,12) d_b_a   [12,15) d_b_g
-// jacobian() is d(deltas)/d(biases at i) accumulated as J <- F J; covariance() is P <- F P F^T + G Q G^T, with the
-// exact discrete transition F of one midpoint step (equivalent to I + F_c dt to first order).
+// jacobian() is d(deltas)/d(biases at i) accumulated as J <- F J; covariance() is P <- F P F^T + G Q G^T,
+// with the exact discrete transition F of one midpoint step (equivalent to I + F_c dt to first order).
 //
-// Noise (ImuNoise: continuous densities sigma): the midpoint average of two readings is treated as one reading of
-// the continuous white noise, so each end is given variance 2 sigma^2 / dt (the average then has sigma^2 / dt, which
-// integrates to the continuous-time sigma^2 T over the interval); bias random walks add sigma_b^2 dt per step.
+// Noise (ImuNoise: continuous densities sigma): the midpoint average of two readings is treated as one
+// reading of the continuous white noise, so each end is given variance 2 sigma^2 / dt (the average then has
+// sigma^2 / dt, which integrates to the continuous-time sigma^2 T over the interval); bias random walks add
+// sigma_b^2 dt per step.
 //
-// The raw samples are kept: repropagate() re-integrates them at new linearisation biases and append() merges the
-// next preintegration (which must start where this one ends) when a non-keyframe is dropped.
+// The raw samples are kept: repropagate() re-integrates them at new linearisation biases and append() merges
+// the next preintegration (which must start where this one ends) when a non-keyframe is dropped.
 #pragma once
 
 #include <vector>
@@ -36,18 +38,18 @@ struct PreintegrationOptions {
 
   template <class V>
   void visit(V& v) {
-    v("max_acc_bias_change", max_acc_bias_change, "accelerometer bias change that triggers repropagation, m/s^2",
-      0.0, 10.0);
-    v("max_gyr_bias_change", max_gyr_bias_change, "gyroscope bias change that triggers repropagation, rad/s", 0.0,
-      1.0);
+    v("max_acc_bias_change", max_acc_bias_change,
+      "accelerometer bias change that triggers repropagation, m/s^2", 0.0, 10.0);
+    v("max_gyr_bias_change", max_gyr_bias_change, "gyroscope bias change that triggers repropagation, rad/s",
+      0.0, 1.0);
   }
 };
 
 /// Preintegrated deltas (in the body frame at i) for given biases.
 struct ImuDelta {
-  Vec3 alpha = Vec3::Zero();     // position delta, m
-  Vec3 beta = Vec3::Zero();      // velocity delta, m/s
-  Quat gamma = Quat::Identity(); // rotation R_Bi_Bj
+  Vec3 alpha = Vec3::Zero();      // position delta, m
+  Vec3 beta = Vec3::Zero();       // velocity delta, m/s
+  Quat gamma = Quat::Identity();  // rotation R_Bi_Bj
 };
 
 class Preintegration {
@@ -59,11 +61,11 @@ class Preintegration {
   Preintegration(const ImuNoise& noise, const Vec3& b_a, const Vec3& b_g,
                  const PreintegrationOptions& options = PreintegrationOptions());
   /// Convenience: integrates `samples` (the first one at t_i, the last one at t_j).
-  Preintegration(const std::vector<ImuSample>& samples, const ImuNoise& noise, const Vec3& b_a, const Vec3& b_g,
-                 const PreintegrationOptions& options = PreintegrationOptions());
+  Preintegration(const std::vector<ImuSample>& samples, const ImuNoise& noise, const Vec3& b_a,
+                 const Vec3& b_g, const PreintegrationOptions& options = PreintegrationOptions());
 
-  /// Adds one sample. The first sample only sets the start time. A sample at the same time as the previous one is
-  /// ignored; an earlier one throws UsageError (naming both time stamps).
+  /// Adds one sample. The first sample only sets the start time. A sample at the same time as the previous
+  /// one is ignored; an earlier one throws UsageError (naming both time stamps).
   void push(const ImuSample& s);
 
   /// Re-integrates all samples with new linearisation biases.
@@ -80,8 +82,11 @@ class Preintegration {
   /// True when (b_a, b_g) is far enough from the linearisation point that first-order correction is poor.
   bool biasMovedFar(const Vec3& b_a, const Vec3& b_g) const;
 
-  /// State at the end time from the state at the start time (biases of state_i used and kept), gravity from noise().
+  /// State at the end time from the state at the start time (biases of state_i used and kept), gravity from
+  /// noise().
   ImuState predict(const ImuState& state_i) const;
+  /// The same with an explicit gravity vector in W (e.g. a refined gravity direction).
+  ImuState predict(const ImuState& state_i, const Vec3& g_W) const;
 
   // Accessors.
   double sumDt() const { return sum_dt_; }  // s, end time - start time
