@@ -1,0 +1,195 @@
+// Left -> right point matching for an unrectified stereo pair.
+#include "linnet/features/point_stereo.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/video/tracking.hpp>
+
+#include "linnet/core/error.h"
+
+namespace linnet {
+
+namespace {
+
+// Level `lvl` image of a cv::buildOpticalFlowPyramid result (interleaved with derivatives when those were built).
+const cv::Mat& levelImage(const std::vector<cv::Mat>& pyr, int lvl) {
+  const bool with_deriv = pyr.size() >= 2 && pyr[1].type() != pyr[0].type();
+  const std::size_t idx = static_cast<std::size_t>(with_deriv ? 2 * lvl : lvl);
+  return pyr[std::min(idx, pyr.size() - (with_deriv ? 2 : 1))];
+}
+
+int numLevels(const std::vector<cv::Mat>& pyr) {
+  const bool with_deriv = pyr.size() >= 2 && pyr[1].type() != pyr[0].type();
+  return static_cast<int>(with_deriv ? pyr.size() / 2 : pyr.size());
+}
+
+// Zero-mean patch of (2h+1)^2 pixels at integer centre; false when it leaves the image or is flat.
+bool patch(const cv::Mat& img, int cx, int cy, int h, std::vector<float>* out) {
+  if (cx - h < 0 || cy - h < 0 || cx + h >= img.cols || cy + h >= img.rows) return false;
+  out->clear();
+  double sum = 0.0;
+  for (int y = cy - h; y <= cy + h; ++y) {
+    const unsigned char* row = img.ptr<unsigned char>(y);
+    for (int x = cx - h; x <= cx + h; ++x) {
+      out->push_back(row[x]);
+      sum += row[x];
+    }
+  }
+  const float mean = static_cast<float>(sum / out->size());
+  double ss = 0.0;
+  for (float& v : *out) {
+    v -= mean;
+    ss += static_cast<double>(v) * v;
+  }
+  if (ss < 1e-6 * out->size()) return false;
+  const float inv = static_cast<float>(1.0 / std::sqrt(ss));
+  for (float& v : *out) v *= inv;
+  return true;
+}
+
+}  // namespace
+
+std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr0, const std::vector<cv::Mat>& pyr1,
+                                                 const CameraModel& cam0, const CameraModel& cam1,
+                                                 const Pose& T_C1_C0, const std::vector<cv::Point2f>& px0,
+                                                 const std::vector<Vec2>& uv0,
+                                                 const std::vector<cv::Point2f>* prior, const StereoPointParams& p,
+                                                 StereoPointStats* stats) {
+  const std::size_t n = px0.size();
+  if (uv0.size() != n || (prior && prior->size() != n))
+    throw UsageError("matchStereoPoints: point lists differ in length");
+  StereoPointStats st;
+  std::vector<StereoPointResult> res(n);
+  if (n == 0 || pyr0.empty() || pyr1.empty()) {
+    if (stats) *stats = st;
+    return res;
+  }
+  const Mat3 R = T_C1_C0.R();
+  const Vec3 t = T_C1_C0.p;
+  const double baseline = t.norm();
+
+  // 1. Initial guesses: the prior, else the best ZNCC along the epipolar curve between depth search_min_depth_m and
+  //    infinity, sampled about one pixel apart at the search level.
+  const int lvl = std::clamp(p.search_level, 0, numLevels(pyr0) - 1);
+  const double scale = 1.0 / static_cast<double>(1 << lvl);
+  const cv::Mat& img0 = levelImage(pyr0, lvl);
+  const cv::Mat& img1 = levelImage(pyr1, lvl);
+  const double rho_search = 1.0 / std::max(1e-3, p.search_min_depth_m);
+  const int samples = std::max(2, static_cast<int>(std::ceil(cam1.fx() * baseline * rho_search * scale)) + 1);
+  std::vector<cv::Point2f> guess(n);
+  std::vector<unsigned char> have(n, 0);
+  std::vector<float> a, b;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (prior && std::isfinite((*prior)[i].x) && std::isfinite((*prior)[i].y)) {
+      guess[i] = (*prior)[i];
+      have[i] = 1;
+      continue;
+    }
+    ++st.searched;
+    if (!patch(img0, cvRound(px0[i].x * scale), cvRound(px0[i].y * scale), p.search_half_patch, &a)) {
+      ++st.search_failed;
+      continue;
+    }
+    const Vec3 ray = R * Vec3(uv0[i].x(), uv0[i].y(), 1.0);
+    double best = -2.0;
+    cv::Point2f best_px;
+    for (int k = 0; k < samples; ++k) {
+      const Vec3 q = ray + (rho_search * k / (samples - 1)) * t;
+      if (q.z() <= 1e-6) continue;
+      const Vec2 px1 = cam1.distort(Vec2(q.x() / q.z(), q.y() / q.z()));
+      if (!cam1.inImage(px1)) continue;
+      if (!patch(img1, cvRound(px1.x() * scale), cvRound(px1.y() * scale), p.search_half_patch, &b)) continue;
+      double zncc = 0.0;
+      for (std::size_t j = 0; j < a.size(); ++j) zncc += static_cast<double>(a[j]) * b[j];
+      if (zncc > best) {
+        best = zncc;
+        best_px = cv::Point2f(static_cast<float>(px1.x()), static_cast<float>(px1.y()));
+      }
+    }
+    if (best < p.search_min_zncc) {
+      ++st.search_failed;
+      continue;
+    }
+    guess[i] = best_px;
+    have[i] = 1;
+  }
+
+  // 2. KLT refinement from the guesses (only the levels up to the search level: the guess is good to a pixel there),
+  //    then the right -> left round trip.
+  std::vector<std::size_t> idx;
+  std::vector<cv::Point2f> left, right;
+  for (std::size_t i = 0; i < n; ++i)
+    if (have[i]) {
+      idx.push_back(i);
+      left.push_back(px0[i]);
+      right.push_back(guess[i]);
+    }
+  if (!idx.empty()) {
+    const cv::Size win(p.klt_window_px, p.klt_window_px);
+    const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, p.klt_max_iterations,
+                                p.klt_epsilon);
+    const int levels = std::min(p.klt_levels, std::max(1, lvl));
+    std::vector<unsigned char> st_f, st_b;
+    std::vector<float> err;
+    cv::calcOpticalFlowPyrLK(pyr0, pyr1, left, right, st_f, err, win, levels, crit, cv::OPTFLOW_USE_INITIAL_FLOW,
+                             p.klt_min_eigen);
+    // Right -> left round trip, only for the points the forward pass kept.
+    std::vector<cv::Point2f> fwd, back;
+    std::vector<std::size_t> fwd_k;
+    for (std::size_t k = 0; k < idx.size(); ++k)
+      if (st_f[k] && cam1.inImage(Vec2(right[k].x, right[k].y), p.border_px)) {
+        fwd_k.push_back(k);
+        fwd.push_back(right[k]);
+        back.push_back(left[k]);
+      }
+    if (!fwd.empty())
+      cv::calcOpticalFlowPyrLK(pyr1, pyr0, fwd, back, st_b, err, win, levels, crit, cv::OPTFLOW_USE_INITIAL_FLOW,
+                               p.klt_min_eigen);
+    std::vector<unsigned char> round_trip(idx.size(), 0);
+    const double fb2 = p.fb_threshold_px * p.fb_threshold_px;
+    for (std::size_t j = 0; j < fwd_k.size(); ++j) {
+      const cv::Point2f d = back[j] - left[fwd_k[j]];
+      round_trip[fwd_k[j]] = st_b[j] && d.dot(d) <= fb2;
+    }
+
+    // 3. Geometric checks in normalised coordinates.
+    const Mat3 E = skew(t) * R;
+    const double epi_th = p.epipolar_threshold_px / cam1.fx();
+    // Tolerance below zero inverse depth: the epipolar threshold seen along the baseline (points near infinity).
+    const double rho_tol = baseline > 1e-9 ? epi_th / baseline : 0.0;
+    const double rho_max = p.min_depth_m > 0.0 ? 1.0 / p.min_depth_m : 1e12;
+    for (std::size_t k = 0; k < idx.size(); ++k) {
+      const std::size_t i = idx[k];
+      Vec2 uv1;
+      if (!round_trip[k] || !cam1.undistort(Vec2(right[k].x, right[k].y), &uv1)) {
+        ++st.klt_failed;
+        continue;
+      }
+      const Vec3 x0(uv0[i].x(), uv0[i].y(), 1.0), x1(uv1.x(), uv1.y(), 1.0);
+      const Vec3 l = E * x0;  // epipolar line of x0 in cam1
+      const double ln = std::hypot(l.x(), l.y());
+      if (ln > 1e-12 && std::abs(x1.dot(l)) / ln > epi_th) {
+        ++st.epipolar_rejected;
+        continue;
+      }
+      // Signed inverse depth along the cam0 ray: x1 x (R x0 + rho t) = 0 => rho = -((x1 x R x0).(x1 x t)) / |x1 x t|^2.
+      const Vec3 c_a = x1.cross(R * x0), c_t = x1.cross(t);
+      const double ct2 = c_t.squaredNorm();
+      const double rho = ct2 > 1e-18 ? -c_a.dot(c_t) / ct2 : 0.0;
+      if (rho < -rho_tol || rho > rho_max) {
+        ++st.depth_rejected;
+        continue;
+      }
+      res[i].ok = true;
+      res[i].px1 = right[k];
+      res[i].uv1 = uv1;
+      res[i].inverse_depth = std::max(0.0, rho);
+      ++st.matched;
+    }
+  }
+  if (stats) *stats = st;
+  return res;
+}
+
+}  // namespace linnet

@@ -1,0 +1,318 @@
+// Point front-end: KLT tracking, outlier rejection, replenishment and stereo matching (DESIGN B1).
+#include "linnet/features/point_tracker.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "linnet/core/error.h"
+#include "linnet/core/options.h"
+#include "linnet/features/point_detection.h"
+#include "linnet/features/point_ransac.h"
+#include "linnet/features/point_stereo.h"
+
+namespace linnet {
+
+namespace {
+
+void checkImage(const cv::Mat& img, const CameraModel& cam, const char* which) {
+  if (img.type() != CV_8UC1 || img.cols != cam.width() || img.rows != cam.height()) {
+    std::ostringstream os;
+    os << "PointTracker::track: the " << which << " image must be 8-bit grayscale " << cam.width() << "x"
+       << cam.height() << ", got type " << img.type() << " of " << img.cols << "x" << img.rows;
+    throw UsageError(os.str());
+  }
+}
+
+cv::Point2f toCv(const Vec2& v) { return cv::Point2f(static_cast<float>(v.x()), static_cast<float>(v.y())); }
+Vec2 toEigen(const cv::Point2f& p) { return Vec2(p.x, p.y); }
+
+}  // namespace
+
+PointTracker::PointTracker(const PointTrackerOptions& options, const CameraModel& cam0, const CameraModel* cam1,
+                           const Pose& T_C1_C0)
+    : opt_(options), cam0_(cam0), cam1_(cam1), T_C1_C0_(T_C1_C0) {
+  validateOptions(opt_, "points");
+  if (opt_.clahe) clahe_ = cv::createCLAHE(opt_.clahe_clip_limit, cv::Size(opt_.clahe_tiles, opt_.clahe_tiles));
+}
+
+PointTracker::~PointTracker() = default;
+
+void PointTracker::setRotationPrediction(const Mat3& R_Ccur_Cprev) { R_pred_ = R_Ccur_Cprev; }
+
+void PointTracker::reset() {
+  tracks_.clear();
+  pyr_prev_.clear();
+  has_last_ = false;
+  R_pred_.reset();
+}
+
+void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& right_in,
+                         std::vector<PointObservation>* points) {
+  const auto t0 = std::chrono::steady_clock::now();
+  checkImage(left_in, cam0_, "left");
+  const bool use_right = cam1_ != nullptr && opt_.stereo && !right_in.empty();
+  if (!right_in.empty() && cam1_ == nullptr)
+    throw UsageError("PointTracker::track: a right image was given to a monocular tracker");
+  if (use_right) checkImage(right_in, *cam1_, "right");
+  if (has_last_ && t <= last_t_) {
+    std::ostringstream os;
+    os << "PointTracker::track: time stamp " << t << " ns is not after the previous one (" << last_t_ << " ns)";
+    throw UsageError(os.str());
+  }
+  stats_ = PointTrackerStats();
+  stats_.previous = static_cast<int>(tracks_.size());
+
+  // Never write into the caller's images: the preprocessed copies are fresh buffers.
+  cv::Mat left = left_in, right = right_in;
+  if (clahe_) {
+    left = cv::Mat();
+    clahe_->apply(left_in, left);
+    if (use_right) {
+      right = cv::Mat();
+      clahe_->apply(right_in, right);
+    }
+  }
+  const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
+  cv::buildOpticalFlowPyramid(left, pyr_cur_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+                              cv::BORDER_CONSTANT, false);
+
+  if (has_last_ && !tracks_.empty()) trackTemporal(toSeconds(t - last_t_));
+  replenish(left);
+
+  if (use_right) {
+    if (opt_.stereo_gain_compensation) {
+      // KLT assumes equal brightness; the two cameras' gains differ (EuRoC: ~10%). Affine map of the right image's
+      // mean and standard deviation onto the left's.
+      cv::Scalar ml, sl, mr, sr;
+      cv::meanStdDev(left, ml, sl);
+      cv::meanStdDev(right, mr, sr);
+      if (sr[0] > 1.0 && sl[0] > 1.0) {
+        const double alpha = sl[0] / sr[0];
+        cv::Mat adjusted;
+        right.convertTo(adjusted, CV_8U, alpha, ml[0] - alpha * mr[0]);
+        right = adjusted;
+      }
+    }
+    cv::buildOpticalFlowPyramid(right, pyr_right_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+                                cv::BORDER_CONSTANT, false);
+    matchStereo();
+  } else {
+    for (Track& tr : tracks_) tr.has_right = tr.right_prior = false;
+  }
+
+  points->reserve(points->size() + tracks_.size());
+  for (const Track& tr : tracks_) {
+    PointObservation o;
+    o.id = tr.id;
+    o.uv0 = tr.uv;
+    o.px0 = toEigen(tr.px);
+    o.velocity0 = tr.velocity;
+    o.has_right = tr.has_right;
+    if (tr.has_right) {
+      o.uv1 = tr.uv1;
+      o.px1 = toEigen(tr.px1);
+    }
+    o.track_length = tr.length;
+    points->push_back(o);
+  }
+
+  std::swap(pyr_prev_, pyr_cur_);
+  last_t_ = t;
+  has_last_ = true;
+  R_pred_.reset();
+  stats_.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void PointTracker::trackTemporal(double dt) {
+  const std::size_t n = tracks_.size();
+  std::vector<cv::Point2f> prev(n), cur(n);
+  const bool predict = R_pred_.has_value() && opt_.use_rotation_prediction;
+  stats_.used_rotation_prediction = predict;
+  for (std::size_t i = 0; i < n; ++i) {
+    prev[i] = tracks_[i].px;
+    cur[i] = prev[i];
+    if (predict) {
+      const Vec3 a = *R_pred_ * Vec3(tracks_[i].uv.x(), tracks_[i].uv.y(), 1.0);
+      if (a.z() > 1e-6) {
+        const Vec2 px = cam0_.distort(Vec2(a.x() / a.z(), a.y() / a.z()));
+        if (cam0_.inImage(px)) cur[i] = toCv(px);
+      }
+    }
+  }
+  const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
+  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, opt_.klt_max_iterations,
+                              opt_.klt_epsilon);
+  std::vector<unsigned char> st_f, st_b;
+  std::vector<float> err;
+  cv::calcOpticalFlowPyrLK(pyr_prev_, pyr_cur_, prev, cur, st_f, err, win, opt_.klt_pyramid_levels, crit,
+                           cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
+  // Backward check, only for the points the forward pass kept (and inside the image).
+  std::vector<cv::Point2f> fwd, back;
+  std::vector<std::size_t> fwd_idx;
+  for (std::size_t i = 0; i < n; ++i)
+    if (st_f[i] && cam0_.inImage(toEigen(cur[i]), opt_.border_px)) {
+      fwd_idx.push_back(i);
+      fwd.push_back(cur[i]);
+      back.push_back(prev[i]);
+    }
+  if (!fwd.empty())
+    cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, err, win, opt_.klt_pyramid_levels, crit,
+                             cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
+  std::vector<unsigned char> ok(n, 0);
+  const double fb2 = opt_.fb_threshold_px * opt_.fb_threshold_px;
+  for (std::size_t k = 0; k < fwd_idx.size(); ++k) {
+    const cv::Point2f d = back[k] - prev[fwd_idx[k]];
+    ok[fwd_idx[k]] = st_b[k] && d.dot(d) <= fb2;
+  }
+
+  std::vector<Track> kept;
+  std::vector<Vec2> uv_prev;
+  kept.reserve(n);
+  uv_prev.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec2 uv;
+    if (!ok[i] || !cam0_.undistort(toEigen(cur[i]), &uv)) {
+      ++stats_.klt_failed;
+      continue;
+    }
+    Track tr = tracks_[i];
+    uv_prev.push_back(tr.uv);
+    // Stereo prior for this frame: last frame's right match moved by this frame's left flow.
+    tr.right_prior = tr.has_right;
+    if (tr.right_prior) tr.px1 += cur[i] - prev[i];
+    tr.has_right = false;
+    tr.px = cur[i];
+    tr.velocity = dt > 0.0 ? Vec2((uv - tr.uv) / dt) : Vec2::Zero();
+    tr.uv = uv;
+    ++tr.length;
+    kept.push_back(tr);
+  }
+  tracks_ = std::move(kept);
+  rejectOutliers(uv_prev);
+}
+
+void PointTracker::rejectOutliers(const std::vector<Vec2>& uv_prev) {
+  std::string mode = opt_.outlier_rejection;
+  if (mode == "none" || tracks_.size() < 8) return;
+  if (mode == "auto" || mode == "rotation") mode = R_pred_.has_value() ? "rotation" : "fundamental";
+  std::vector<Vec2> uv_cur(tracks_.size());
+  for (std::size_t i = 0; i < tracks_.size(); ++i) uv_cur[i] = tracks_[i].uv;
+  TwoViewRansacParams p;
+  p.focal_px = 0.5 * (cam0_.fx() + cam0_.fy());
+  p.threshold_px = opt_.ransac_threshold_px;
+  p.confidence = opt_.ransac_confidence;
+  p.max_iterations = opt_.ransac_max_iterations;
+  const std::vector<unsigned char> inl = mode == "rotation" ? knownRotationInliers(uv_prev, uv_cur, *R_pred_, p)
+                                                            : fundamentalInliers(uv_prev, uv_cur, p);
+  std::vector<Track> kept;
+  kept.reserve(tracks_.size());
+  for (std::size_t i = 0; i < tracks_.size(); ++i) {
+    if (inl[i])
+      kept.push_back(tracks_[i]);
+    else
+      ++stats_.ransac_rejected;
+  }
+  tracks_ = std::move(kept);
+}
+
+void PointTracker::replenish(const cv::Mat& image) {
+  // Crowding: longer tracks first claim their disc; a track inside an older one's disc is dropped (as VINS-Mono does).
+  std::vector<std::size_t> order(tracks_.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return tracks_[a].length > tracks_[b].length; });
+  std::vector<cv::Point2f> pts(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) pts[k] = tracks_[order[k]].px;
+  std::vector<unsigned char> keep_sorted;
+  PointDetectorParams dp;
+  dp.detector = opt_.detector;
+  dp.fast_threshold = opt_.fast_threshold;
+  dp.shi_tomasi_quality = opt_.shi_tomasi_quality;
+  dp.grid_cols = opt_.grid_cols;
+  dp.grid_rows = opt_.grid_rows;
+  dp.min_distance_px = opt_.min_distance_px;
+  dp.border_px = std::max(4, static_cast<int>(std::ceil(opt_.border_px)) + 1);
+  cv::Mat mask = detectionMask(image.size(), pts, opt_.min_distance_px, dp.border_px, &keep_sorted);
+  std::vector<unsigned char> keep(tracks_.size(), 1);
+  for (std::size_t k = 0; k < order.size(); ++k) keep[order[k]] = keep_sorted[k];
+  std::vector<Track> kept;
+  kept.reserve(static_cast<std::size_t>(opt_.max_points));
+  for (std::size_t i = 0; i < tracks_.size(); ++i) {
+    if (keep[i])
+      kept.push_back(tracks_[i]);
+    else
+      ++stats_.crowded;
+  }
+  tracks_ = std::move(kept);
+
+  const int need = opt_.max_points - static_cast<int>(tracks_.size());
+  if (need <= 0) return;
+  for (const cv::Point2f& p : detectCorners(image, &mask, need, dp)) {
+    Vec2 uv;
+    if (!cam0_.undistort(toEigen(p), &uv)) continue;
+    Track tr;
+    tr.id = next_id_++;
+    tr.px = p;
+    tr.uv = uv;
+    tr.velocity = Vec2::Zero();
+    tr.length = 1;
+    tr.has_right = false;
+    tr.right_prior = false;
+    tr.px1 = cv::Point2f(0.f, 0.f);
+    tr.uv1 = Vec2::Zero();
+    tracks_.push_back(tr);
+    ++stats_.detected;
+  }
+}
+
+void PointTracker::matchStereo() {
+  const std::size_t n = tracks_.size();
+  stats_.stereo_attempted = static_cast<int>(n);
+  std::vector<cv::Point2f> px0(n), prior(n);
+  std::vector<Vec2> uv0(n);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (std::size_t i = 0; i < n; ++i) {
+    px0[i] = tracks_[i].px;
+    uv0[i] = tracks_[i].uv;
+    prior[i] = tracks_[i].right_prior ? tracks_[i].px1 : cv::Point2f(nan, nan);
+  }
+  StereoPointParams sp;
+  sp.klt_window_px = opt_.klt_window_px;
+  sp.klt_levels = opt_.klt_pyramid_levels;
+  sp.klt_max_iterations = opt_.klt_max_iterations;
+  sp.klt_epsilon = opt_.klt_epsilon;
+  sp.klt_min_eigen = opt_.klt_min_eigen;
+  sp.search_min_depth_m = opt_.stereo_search_min_depth_m;
+  sp.search_min_zncc = opt_.stereo_search_min_zncc;
+  sp.search_level = opt_.stereo_search_level;
+  sp.fb_threshold_px = opt_.stereo_fb_threshold_px;
+  sp.epipolar_threshold_px = opt_.stereo_epipolar_threshold_px;
+  sp.min_depth_m = opt_.stereo_min_depth_m;
+  sp.border_px = opt_.border_px;
+  StereoPointStats ss;
+  const std::vector<StereoPointResult> res =
+      matchStereoPoints(pyr_cur_, pyr_right_, cam0_, *cam1_, T_C1_C0_, px0, uv0, &prior, sp, &ss);
+  for (std::size_t i = 0; i < n; ++i) {
+    Track& tr = tracks_[i];
+    tr.has_right = res[i].ok;
+    tr.right_prior = false;
+    if (res[i].ok) {
+      tr.px1 = res[i].px1;
+      tr.uv1 = res[i].uv1;
+    }
+  }
+  stats_.stereo_matched = ss.matched;
+  stats_.stereo_search_failed = ss.search_failed;
+  stats_.stereo_klt_failed = ss.klt_failed;
+  stats_.stereo_epipolar_rejected = ss.epipolar_rejected;
+  stats_.stereo_depth_rejected = ss.depth_rejected;
+}
+
+}  // namespace linnet
