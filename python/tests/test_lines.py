@@ -186,7 +186,7 @@ def test_lines_and_bench_commands(tmp_path):
     pngs = sorted((tmp_path / "view").glob("frame_*.png"))
     assert len(pngs) == 6
     rows = np.loadtxt(tmp_path / "view" / "lines.csv", delimiter=",", comments="#")
-    assert rows.shape == (6, 15) and np.all(rows[:, 2] >= 30)
+    assert rows.shape == (6, 17) and np.all(rows[:, 2] >= 30)
     res = runner.invoke(cli, ["bench", "lines", str(micro), "--frames", "0:20", "--json", str(tmp_path / "b.json")])
     assert res.exit_code == 0, res.output
     assert "| detect |" in res.output

@@ -163,6 +163,7 @@ py::dict timingsToDict(const LineFrameTimings& t) {
   d["detect_ms"] = t.detect_ms, d["merge_ms"] = t.merge_ms, d["describe_ms"] = t.describe_ms;
   d["temporal_ms"] = t.temporal_ms, d["stereo_ms"] = t.stereo_ms, d["left_ms"] = t.left_ms;
   d["total_ms"] = t.total_ms;
+  d["cpu_left_ms"] = t.cpu_left_ms, d["cpu_total_ms"] = t.cpu_total_ms;
   d["detected_left"] = t.detected_left, d["detected_right"] = t.detected_right, d["tracked"] = t.tracked;
   d["new_lines"] = t.new_lines, d["stereo_matched"] = t.stereo_matched;
   return d;
@@ -234,7 +235,8 @@ options: {"key.path": value} overrides of LineTrackerOptions, e.g. {"detection.d
            "Tracks one frame. Returns a dict of arrays (N lines, sorted by id): id, s0, e0 (normalised cam0), ps0, "
            "pe0 (pixels cam0), has_right, s1, e1, ps1, pe1 (cam1, valid where has_right), track_length.")
       .def("last_timings", &PyLineTracker::lastTimings,
-           "Stage times of the last frame (ms): detect, merge, describe, temporal, stereo, left, total; and counts.")
+           "Stage wall times of the last frame (ms): detect, merge, describe, temporal, stereo, left, total; thread CPU "
+           "times cpu_left, cpu_total; and counts.")
       .def("options", &PyLineTracker::options, "All options as a flat {key.path: value} dict.");
 
   m.def(

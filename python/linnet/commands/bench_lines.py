@@ -1,6 +1,7 @@
 """`linnet bench lines DATASET [--json FILE]`: per-stage median / p95 ms of the line front-end, counts, track lengths.
 
-Times are measured inside the C++ tracker (steady clock around each stage); image loading is not included.
+Times are measured inside the C++ tracker (steady clock around each stage; plus the thread's CPU time for the left
+part and the whole frame, which other processes' load does not inflate); image loading is not included.
 Pin to one core for the issue's figures: `taskset -c 1 linnet bench lines DATASET`.
 """
 from __future__ import annotations
@@ -10,7 +11,8 @@ from pathlib import Path
 
 import click
 
-STAGES = ("detect_ms", "merge_ms", "describe_ms", "temporal_ms", "stereo_ms", "left_ms", "total_ms")
+STAGES = ("detect_ms", "merge_ms", "describe_ms", "temporal_ms", "stereo_ms", "left_ms", "total_ms", "cpu_left_ms",
+          "cpu_total_ms")
 
 
 def bench(dataset, frames=None, options=None, mono=False, repeat=1):

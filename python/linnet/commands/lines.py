@@ -6,7 +6,8 @@ from pathlib import Path
 import click
 
 CSV_COLUMNS = ("frame", "t_ns", "lines", "stereo_matched", "tracked", "new_lines", "detected_left", "detected_right",
-               "detect_ms", "merge_ms", "describe_ms", "temporal_ms", "stereo_ms", "left_ms", "total_ms")
+               "detect_ms", "merge_ms", "describe_ms", "temporal_ms", "stereo_ms", "left_ms", "total_ms", "cpu_left_ms",
+               "cpu_total_ms")
 
 
 def _options(detector, max_lines):
@@ -51,7 +52,8 @@ def COMMAND(dataset, out_dir, frames, detector, max_lines, mono, no_png):
         tm = tracker.last_timings()
         rows.append((k, t_ns, len(obs["id"]), tm["stereo_matched"], tm["tracked"], tm["new_lines"],
                      tm["detected_left"], tm["detected_right"], tm["detect_ms"], tm["merge_ms"], tm["describe_ms"],
-                     tm["temporal_ms"], tm["stereo_ms"], tm["left_ms"], tm["total_ms"]))
+                     tm["temporal_ms"], tm["stereo_ms"], tm["left_ms"], tm["total_ms"], tm["cpu_left_ms"],
+                     tm["cpu_total_ms"]))
         if not no_png:
             label = (f"frame {k}  lines {len(obs['id'])}  stereo {tm['stereo_matched']}  tracked {tm['tracked']}  "
                      f"{tm['total_ms']:.1f} ms")

@@ -44,6 +44,8 @@ struct LineFrameTimings {
   double stereo_ms = 0.0;    // left -> right matching (incl. undistortion of endpoints)
   double left_ms = 0.0;      // everything the left image needs alone (detect, merge, describe, temporal)
   double total_ms = 0.0;     // whole call to track()
+  double cpu_left_ms = 0.0;  // CPU time of this thread for the left-image part (robust to other processes' load)
+  double cpu_total_ms = 0.0; // CPU time of this thread for the whole call
   int detected_left = 0;     // segments after length filter and merging
   int detected_right = 0;
   int tracked = 0;           // lines matched to the previous frame
