@@ -166,8 +166,7 @@ def build_scene(name: str, path_points: np.ndarray, seed: int) -> SceneSpec:
                 low = is_low(po + along * ds / 2)
                 t = b.surface_texture(ds, dh, low, greys[wi])
                 b.quad(po, along * ds, up * dh, t)
-        b.line(o, o + up * height, "wall_corner")
-        b.line(o, o + along * length, "wall_floor")
+        b.line(o, o + up * height, "wall_corner")  # (the wall-floor junction is hidden by the skirting board)
         b.line(o + up * height, o + up * height + along * length, "wall_ceiling")
         b.point(o, "room_corner")
         b.point(o + up * height, "room_corner")
@@ -210,6 +209,7 @@ def _add_wall_structure(b: _Builder, lo, hi, is_low, hall: bool):
         t2 = b.texture(tx.plain(length, 0.015, 0.05, rng, 230.0, 2.0))
         b.quad(so + up * 0.1, -inward * 0.015, along * length, t2)
         b.line(so + up * 0.1, so + up * 0.1 + along * length, "skirting")
+        b.line(so, so + along * length, "skirting")
         b.line(o + up * 0.1, o + up * 0.1 + along * length, "skirting")
         # Items along the wall, left to right, without overlaps.
         s = rng.uniform(0.3, 1.0)

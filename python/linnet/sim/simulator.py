@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -11,10 +12,11 @@ import cv2
 import numpy as np
 
 from linnet.sim import writer
-from linnet.sim.imu import (IMU_PERIOD_NS, ImuNoise, interpolate_biases, load_real_imu, synthesize)
+from linnet.sim.imu import IMU_PERIOD_NS, ImuData, ImuNoise, interpolate_biases, load_real_imu, synthesize
 from linnet.sim.rig import EUROC_CAM0, EUROC_CAM1
-from linnet.sim.scene import SCENES, build_scene
-from linnet.sim.trajectory import InputError, SplineTrajectory, load_trajectory
+from linnet.sim.scene import SCENES, SceneSpec, build_scene
+from linnet.sim.trajectory import (InputError, SplineState, SplineTrajectory, TrajectorySamples,
+                                   load_trajectory)
 
 CAMERA_EVERY = 10            # one stereo frame every 10 IMU samples: 20 Hz on the IMU clock, as in EuRoC
 EXPOSURE_S = 0.010           # exposure time for motion blur, s
@@ -51,19 +53,24 @@ def _pose(R: np.ndarray, p: np.ndarray) -> np.ndarray:
     return T
 
 
-def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float = 0.0,
-             duration: Optional[float] = None, imu_noise: str = "euroc", real_imu: Optional[str] = None,
-             blur: bool = False, exposure_changes: bool = False,
-             progress: Optional[Callable[[int, int], None]] = None, render_options: Optional[dict] = None,
-             knot_dt: float = 0.1) -> dict:
-    """Simulates a EuRoC-like stereo + IMU sequence and writes it to `out_dir` (the folder that will hold mav0/).
+@dataclass
+class Replay:
+    """Everything a simulated sequence is made of, before any file is written."""
+    samples: TrajectorySamples
+    spline: SplineTrajectory
+    fit: dict
+    imu_t: np.ndarray            # (N,) int64 IMU time stamps, ns
+    state: SplineState           # ground truth at imu_t
+    imu: ImuData                 # measurements and true biases at imu_t
+    noise: Optional[ImuNoise]    # None with a real IMU
+    cam_t: np.ndarray            # (M,) int64 camera time stamps (every CAMERA_EVERY-th IMU stamp), ns
+    cameras: list                # [CameraSpec cam0, cam1]
+    scene: SceneSpec
 
-    trajectory: TUM / EuRoC csv path, or "builtin:loop". scene: one of SCENES. start / duration: seconds into the
-    trajectory. imu_noise: "euroc" | "none" | YAML file (ignored with real_imu). real_imu: a EuRoC imu0/data.csv whose
-    samples replace the synthetic IMU (images are still rendered from the trajectory). Returns a summary dict:
-    frames, duration_s, render_s (wall), render_cpu_s, stereo_fps, fit (residual), scene stats, out_dir.
-    Same arguments -> byte-identical files.
-    """
+
+def prepare(trajectory: str, scene: str, seed: int = 0, start: float = 0.0, duration: Optional[float] = None,
+            imu_noise: str = "euroc", real_imu: Optional[str] = None, knot_dt: float = 0.1) -> Replay:
+    """Loads and fits the trajectory, makes the IMU and builds the scene (deterministic from the arguments)."""
     if scene not in SCENES:
         raise InputError(f"unknown scene '{scene}' (known: {', '.join(SCENES)})")
     if start < 0:
@@ -85,28 +92,44 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
             raise InputError(f"--real-imu: {real_imu}: no IMU samples inside the trajectory's time range")
         imu_t = real.t_ns[keep]
     else:
-        n = (t_last - t_first) // IMU_PERIOD_NS + 1
+        n = max(0, (t_last - t_first) // IMU_PERIOD_NS + 1)
         imu_t = t_first + np.arange(n, dtype=np.int64) * IMU_PERIOD_NS
-    if (imu_t[-1] - imu_t[0]) * 1e-9 < MIN_DURATION_S:
+    if imu_t.size < 2 or (imu_t[-1] - imu_t[0]) * 1e-9 < MIN_DURATION_S:
         raise InputError(f"{samples.source}: less than {MIN_DURATION_S} s of trajectory after --start {start}")
 
     spline, fit = SplineTrajectory.fit(samples, int(imu_t[0]), int(imu_t[-1]), dt=knot_dt)
     state = spline.evaluate(imu_t)
-    rng = np.random.default_rng(seed)
     if real_imu is not None:
-        imu = real
-        imu.t_ns, imu.gyr, imu.acc = imu_t, real.gyr[keep], real.acc[keep]
-        imu.bias_gyr = interpolate_biases(imu_t, samples.t_ns, samples.bias_gyr)
-        imu.bias_acc = interpolate_biases(imu_t, samples.t_ns, samples.bias_acc)
+        imu = ImuData(imu_t, real.gyr[keep], real.acc[keep],
+                      interpolate_biases(imu_t, samples.t_ns, samples.bias_gyr),
+                      interpolate_biases(imu_t, samples.t_ns, samples.bias_acc))
     else:
-        imu = synthesize(spline, imu_t, noise, rng)
-
+        imu = synthesize(spline, imu_t, noise, np.random.default_rng(seed))
     cams = [EUROC_CAM0, EUROC_CAM1]
-    cam_t = imu_t[::CAMERA_EVERY]
-    cam_state = spline.evaluate(cam_t)
     # Path points the scene must keep clear of: body and camera centres along the whole path, every 5 ms.
     centres = [state.p] + [state.p + state.R @ cam.T_B_C[:3, 3] for cam in cams]
     scene_spec = build_scene(scene, np.vstack(centres), seed)
+    return Replay(samples, spline, fit, imu_t, state, imu, noise, imu_t[::CAMERA_EVERY], cams, scene_spec)
+
+
+def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float = 0.0,
+             duration: Optional[float] = None, imu_noise: str = "euroc", real_imu: Optional[str] = None,
+             blur: bool = False, exposure_changes: bool = False,
+             progress: Optional[Callable[[int, int], None]] = None, render_options: Optional[dict] = None,
+             knot_dt: float = 0.1) -> dict:
+    """Simulates a EuRoC-like stereo + IMU sequence and writes it to `out_dir` (the folder that will hold mav0/).
+
+    trajectory: TUM / EuRoC csv path, or "builtin:loop". scene: one of SCENES. start / duration: seconds into the
+    trajectory. imu_noise: "euroc" | "none" | YAML file (ignored with real_imu). real_imu: a EuRoC imu0/data.csv whose
+    samples replace the synthetic IMU (images are still rendered from the trajectory). Returns a summary dict:
+    frames, duration_s, render_s (wall), render_cpu_s, stereo_fps, fit (residual), scene stats, out_dir.
+    Same arguments -> byte-identical files.
+    """
+    rp = prepare(trajectory, scene, seed, start, duration, imu_noise, real_imu, knot_dt)
+    spline, imu_t, state, imu, noise, cam_t, cams, scene_spec = (rp.spline, rp.imu_t, rp.state, rp.imu, rp.noise,
+                                                                 rp.cam_t, rp.cameras, rp.scene)
+    fit = rp.fit
+    cam_state = spline.evaluate(cam_t)
     native_scene = scene_spec.to_native()
     opts = dict(render_options or {})
     if blur:
@@ -147,6 +170,7 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
                       "real_imu": None if real_imu is None else str(real_imu), "blur": bool(blur),
                       "exposure_changes": bool(exposure_changes), "knot_dt": float(knot_dt)},
         "fit": fit,
+        "imu_noise_used": None if noise is None else {k: float(v) for k, v in asdict(noise).items()},
         "frames": int(cam_t.size), "imu_samples": int(imu_t.size), "duration_s": duration_s,
         "t_first_ns": int(imu_t[0]), "t_last_ns": int(imu_t[-1]),
         "scene": {"name": scene, "quads": len(scene_spec.quads), "lines": len(scene_spec.lines),

@@ -119,12 +119,12 @@ def _smootherstep_integral(x: np.ndarray) -> np.ndarray:
 def builtin_loop(duration: float = 30.0, rate_hz: float = 200.0, t0_ns: int = 1_600_000_000_000_000_000
                  ) -> TrajectorySamples:
     """A figure-eight flight inside a room, like a hand-flown drone: 1 s at rest, a smooth 2.5 s speed-up, then
-    0.8-1.2 m/s along a 5.6 m x 3.2 m figure-eight with height changes, yaw following the path plus a slow look-around,
+    0.55-1.25 m/s along a 5.6 m x 3.2 m figure-eight with height changes, yaw following the path plus a slow look-around,
     and banking roll / pitch of a few degrees. Body frame as on the EuRoC MAV: x up, z forward (the cameras look along
     body z)."""
     n = int(round(duration * rate_hz)) + 1
     t = np.arange(n) / rate_hz
-    omega = 2.0 * math.pi / 24.0                   # rad/s of loop phase at cruise
+    omega = 2.0 * math.pi / 22.0                   # rad/s of loop phase at cruise
     t_rest, t_ramp = 1.0, 2.5
     ramp = np.clip((t - t_rest) / t_ramp, 0.0, 1.0)
     ramp = ramp ** 3 * (10.0 - 15.0 * ramp + 6.0 * ramp ** 2)

@@ -31,7 +31,7 @@ Written by `linnet simulate`. All coordinates are in the world frame W of the tr
 ## lines.csv
 One physical straight edge per row: `id,x0,y0,z0,x1,y1,z1,kind`. Kinds: `box` / `pillar` (edges of boxes),
 `door_frame`, `window_frame`, `panel_frame`, `door`, `window`, `panel`, `poster` (outlines), `skirting`, `pipe`,
-`wall_corner`, `wall_floor`, `wall_ceiling` (room junctions), `floor_tile`, `ceiling_tile` (centre lines of the
+`wall_corner`, `wall_ceiling` (room junctions), `floor_tile`, `ceiling_tile` (centre lines of the
 1 cm grout bands of low-texture floors and ceilings). Segments may be partly or wholly hidden from a given view:
 test visibility with the depth of the rendered scene.
 
@@ -68,11 +68,24 @@ def write_camera(mav0: Path, cam, t_ns: np.ndarray) -> Path:
 
 
 def write_imu(mav0: Path, imu, noise, rate_hz: float = 200.0):
+    """imu0/data.csv and sensor.yaml. The yaml holds the noise the measurements were made with; when a density is
+    zero (noise-free simulation) it holds EuRoC's nominal values instead, for estimators that weight by them (and
+    that reject zeros), and says so in a comment."""
+    from linnet.sim.imu import ImuNoise
+
     d = mav0 / "imu0"
     d.mkdir(parents=True, exist_ok=True)
+    note = ""
+    densities = (noise.gyroscope_noise_density, noise.gyroscope_random_walk, noise.accelerometer_noise_density,
+                 noise.accelerometer_random_walk)
+    if min(densities) <= 0.0:
+        note = ("# NOTE: the measurements were simulated with gyroscope/accelerometer noise densities and random walks "
+                "of\n# [" + ", ".join(f"{v:g}" for v in densities) + "]; the values below are EuRoC's nominal "
+                "ones, for estimators.\n")
+        noise = ImuNoise()
     (d / "sensor.yaml").write_text(
         "%YAML:1.0\n#Default imu sensor yaml file\nsensor_type: imu\n"
-        "comment: simulated VI-Sensor IMU (ADIS16448 noise model)\n\n"
+        "comment: simulated VI-Sensor IMU (ADIS16448 noise model)\n" + note + "\n"
         "# Sensor extrinsics wrt. the body-frame.\n" + _yaml_matrix(np.eye(4)) + f"rate_hz: {rate_hz:g}\n\n"
         "# inertial sensor noise model parameters (static)\n"
         f"gyroscope_noise_density: {noise.gyroscope_noise_density:.6e}     # [ rad / s / sqrt(Hz) ]\n"
