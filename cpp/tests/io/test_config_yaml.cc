@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "io_test_util.h"
 #include "linnet/core/options.h"
 #include "linnet/io/config_yaml.h"
 
@@ -86,13 +87,6 @@ std::string errorOf(const std::string& yaml_text) {
   return "";
 }
 
-std::filesystem::path tempDir(const std::string& name) {
-  auto dir = std::filesystem::temp_directory_path() / ("linnet_test_io_" + name);
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
 TEST(ConfigYaml, MissingKeysKeepDefaultsPresentKeysOverride) {
   RootOptions o;
   loadOptions(
@@ -141,7 +135,7 @@ TEST(ConfigYaml, SaveLoadRoundTripsExactly) {
   o.estimator.scale = 0.7f;
   o.estimator.max_gap_ns = 1403715273262142976;
 
-  const auto dir = tempDir("config_roundtrip");
+  const io_test::TempDir dir("config_roundtrip");
   const std::string path = (dir / "saved.yaml").string();
   saveOptionsFile(path, o, "Linnet test\nsecond header line");
   RootOptions r;
@@ -239,7 +233,7 @@ TEST(ConfigYaml, DuplicateKeyIsReported) {
 
 TEST(ConfigYaml, FileErrorsAreInputErrors) {
   RootOptions o;
-  const auto dir = tempDir("config_errors");
+  const io_test::TempDir dir("config_errors");
   try {
     loadOptionsFile((dir / "missing.yaml").string(), o);
     FAIL() << "no error";

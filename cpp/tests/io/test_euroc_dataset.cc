@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "io_test_util.h"
 #include "linnet/core/error.h"
 #include "linnet/io/euroc_dataset.h"
 #include "linnet/io/text_parse.h"
@@ -22,41 +23,12 @@ std::string readAll(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
-void writeAll(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::binary) << text; }
+void writeAll(const fs::path& p, const std::string& text) { io_test::writeFile(p, text); }
 
-/// The first `n` lines of a text file that are not comments, after its comment lines.
-std::string headLines(const fs::path& p, int header_and_rows) {
-  std::ifstream in(p);
-  std::string out, line;
-  for (int i = 0; i < header_and_rows && std::getline(in, line); ++i) out += line + "\n";
-  return out;
-}
-
-/// A small copy of the micro set (5 stereo frames, 300 IMU rows, 10 GT rows) under a fresh temp folder.
-fs::path makeSmallCopy(const std::string& name, int frames = 5) {
-  const fs::path src = testing::eurocMicroDir() / "mav0";
-  const fs::path root = fs::temp_directory_path() / ("linnet_test_io_euroc_" + name);
-  fs::remove_all(root);
-  const fs::path dst = root / "mav0";
-  for (const char* cam : {"cam0", "cam1"}) {
-    fs::create_directories(dst / cam / "data");
-    fs::copy_file(src / cam / "sensor.yaml", dst / cam / "sensor.yaml");
-    const std::string csv = headLines(src / cam / "data.csv", frames + 1);
-    writeAll(dst / cam / "data.csv", csv);
-    std::istringstream rows(csv);
-    std::string line;
-    std::getline(rows, line);  // header
-    while (std::getline(rows, line)) {
-      const std::string file = line.substr(line.find(',') + 1);
-      fs::copy_file(src / cam / "data" / file, dst / cam / "data" / file);
-    }
-  }
-  fs::create_directories(dst / "imu0");
-  fs::copy_file(src / "imu0" / "sensor.yaml", dst / "imu0" / "sensor.yaml");
-  writeAll(dst / "imu0" / "data.csv", headLines(src / "imu0" / "data.csv", 301));
-  fs::create_directories(dst / "state_groundtruth_estimate0");
-  writeAll(dst / "state_groundtruth_estimate0" / "data.csv",
-           headLines(src / "state_groundtruth_estimate0" / "data.csv", 11));
+/// A small copy of the micro set (5 stereo frames, 300 IMU rows, 10 GT rows) in a fresh temp folder.
+io_test::TempDir makeSmallCopy(const std::string& name) {
+  io_test::TempDir root("euroc_" + name);
+  io_test::copyEurocSubset(root, 5, 300, 10, true);
   return root;
 }
 
@@ -172,7 +144,7 @@ TEST(EurocDataset, OpensTheMav0FolderItselfAndMono) {
 
 TEST(EurocDataset, SmallCopyOpensWithCrlfAndNoGroundTruth) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = makeSmallCopy("crlf");
+  const auto root = makeSmallCopy("crlf");
   for (const char* f : {"cam0/data.csv", "imu0/data.csv"}) {
     std::string text = readAll(root / "mav0" / f), crlf;
     for (char c : text) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
@@ -189,7 +161,7 @@ TEST(EurocDataset, SmallCopyOpensWithCrlfAndNoGroundTruth) {
 
 TEST(EurocDataset, UnpairedFramesAreDroppedAndReported) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = makeSmallCopy("unpaired");
+  const auto root = makeSmallCopy("unpaired");
   const fs::path csv = root / "mav0" / "cam1" / "data.csv";
   replaceInFile(csv, "1403715273312143104,1403715273312143104.png\n", "");
   const EurocDataset d = EurocDataset::open(root.string());
@@ -201,7 +173,7 @@ TEST(EurocDataset, UnpairedFramesAreDroppedAndReported) {
 
 TEST(EurocDataset, MissingImageNamesCsvLineAndFile) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = makeSmallCopy("missing_image");
+  const auto root = makeSmallCopy("missing_image");
   fs::remove(root / "mav0" / "cam1" / "data" / "1403715273362142976.png");
   const std::string msg = openError(root);
   EXPECT_NE(msg.find("cam1/data.csv:4: image not found on disk"), std::string::npos) << msg;
@@ -210,7 +182,7 @@ TEST(EurocDataset, MissingImageNamesCsvLineAndFile) {
 
 TEST(EurocDataset, TruncatedCsvLineNamesFileAndLine) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = makeSmallCopy("truncated");
+  const auto root = makeSmallCopy("truncated");
   const fs::path csv = root / "mav0" / "imu0" / "data.csv";
   std::string text = readAll(csv);
   text.resize(text.rfind(',', text.size() - 40));  // cut the last row inside its 4th column
@@ -219,7 +191,7 @@ TEST(EurocDataset, TruncatedCsvLineNamesFileAndLine) {
   EXPECT_NE(msg.find("imu0/data.csv:301: expected 7 columns"), std::string::npos) << msg;
 
   // A broken number: the column is named.
-  const fs::path root2 = makeSmallCopy("bad_number");
+  const auto root2 = makeSmallCopy("bad_number");
   replaceInFile(root2 / "mav0" / "imu0" / "data.csv", "9.0874956666666655", "9.08x");
   const std::string msg2 = openError(root2);
   EXPECT_NE(msg2.find("imu0/data.csv:2: column 'a_RS_S_x': expected a number, got '9.08x'"),
@@ -229,19 +201,19 @@ TEST(EurocDataset, TruncatedCsvLineNamesFileAndLine) {
 
 TEST(EurocDataset, NonMonotonicAndDuplicatedTimeStamps) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = makeSmallCopy("backwards");
+  const auto root = makeSmallCopy("backwards");
   replaceInFile(root / "mav0" / "cam0" / "data.csv", "1403715273362142976,", "1403715273212142976,");
   const std::string msg = openError(root);
   EXPECT_NE(msg.find("cam0/data.csv:4: time stamp 1403715273212142976 ns goes backwards"), std::string::npos)
       << msg;
 
-  const fs::path root2 = makeSmallCopy("duplicate");
+  const auto root2 = makeSmallCopy("duplicate");
   replaceInFile(root2 / "mav0" / "imu0" / "data.csv", "1403715273267142912,", "1403715273262142976,");
   const std::string msg2 = openError(root2);
   EXPECT_NE(msg2.find("imu0/data.csv:3: time stamp 1403715273262142976 ns is duplicated"), std::string::npos)
       << msg2;
 
-  const fs::path root3 = makeSmallCopy("gt_backwards");
+  const auto root3 = makeSmallCopy("gt_backwards");
   replaceInFile(root3 / "mav0" / "state_groundtruth_estimate0" / "data.csv", "1403715273312143104,",
                 "1403715273112143104,");
   const std::string msg3 = openError(root3);
@@ -250,18 +222,18 @@ TEST(EurocDataset, NonMonotonicAndDuplicatedTimeStamps) {
 
 TEST(EurocDataset, BadOrIncompleteSensorYaml) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = makeSmallCopy("bad_yaml");
+  const auto root = makeSmallCopy("bad_yaml");
   replaceInFile(root / "mav0" / "cam0" / "sensor.yaml", "resolution: [752, 480]", "resolution: [752, 480");
   const std::string msg = openError(root);
   EXPECT_NE(msg.find("cam0/sensor.yaml:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("YAML syntax error"), std::string::npos) << msg;
 
-  const fs::path root2 = makeSmallCopy("incomplete_yaml");
+  const auto root2 = makeSmallCopy("incomplete_yaml");
   replaceInFile(root2 / "mav0" / "cam1" / "sensor.yaml", "intrinsics:", "intrinsic:");
   const std::string msg2 = openError(root2);
   EXPECT_NE(msg2.find("cam1/sensor.yaml: missing key 'intrinsics'"), std::string::npos) << msg2;
 
-  const fs::path root3 = makeSmallCopy("bad_value_yaml");
+  const auto root3 = makeSmallCopy("bad_value_yaml");
   replaceInFile(root3 / "mav0" / "imu0" / "sensor.yaml", "gyroscope_random_walk: 1.9393e-05",
                 "gyroscope_random_walk: fast");
   const std::string msg3 = openError(root3);
@@ -269,14 +241,14 @@ TEST(EurocDataset, BadOrIncompleteSensorYaml) {
             std::string::npos)
       << msg3;
 
-  const fs::path root4 = makeSmallCopy("bad_tbs");
+  const auto root4 = makeSmallCopy("bad_tbs");
   replaceInFile(root4 / "mav0" / "cam0" / "sensor.yaml", "0.0, 0.0, 0.0, 1.0]", "0.0, 0.0, 1.0]");
   const std::string msg4 = openError(root4);
   EXPECT_NE(msg4.find("cam0/sensor.yaml:8: key 'T_BS' has rows*cols = 16 but 15 data values"),
             std::string::npos)
       << msg4;
 
-  const fs::path root5 = makeSmallCopy("bad_distortion");
+  const auto root5 = makeSmallCopy("bad_distortion");
   replaceInFile(root5 / "mav0" / "cam0" / "sensor.yaml", "radial-tangential", "fov");
   const std::string msg5 = openError(root5);
   EXPECT_NE(msg5.find("key 'distortion_model' = 'fov' is not supported"), std::string::npos) << msg5;
@@ -284,27 +256,26 @@ TEST(EurocDataset, BadOrIncompleteSensorYaml) {
 
 TEST(EurocDataset, MissingFilesAndFolders) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = makeSmallCopy("missing_sensor_yaml");
+  const auto root = makeSmallCopy("missing_sensor_yaml");
   fs::remove(root / "mav0" / "imu0" / "sensor.yaml");
   const std::string msg = openError(root);
   EXPECT_NE(msg.find("imu0/sensor.yaml: file not found"), std::string::npos) << msg;
 
-  const fs::path root2 = makeSmallCopy("missing_csv");
+  const auto root2 = makeSmallCopy("missing_csv");
   fs::remove(root2 / "mav0" / "cam0" / "data.csv");
   const std::string msg2 = openError(root2);
   EXPECT_NE(msg2.find("cam0/data.csv: file not found"), std::string::npos) << msg2;
 
-  const fs::path root3 = makeSmallCopy("missing_mav0");
+  const auto root3 = makeSmallCopy("missing_mav0");
   fs::rename(root3 / "mav0", root3 / "mav1");
   const std::string msg3 = openError(root3);
   EXPECT_NE(msg3.find(root3.string() + ": no mav0/ folder"), std::string::npos) << msg3;
 
-  EXPECT_NE(openError(root3 / "nowhere").find("nowhere: dataset folder not found"), std::string::npos);
+  EXPECT_NE(openError(root3.path() / "nowhere").find("nowhere: dataset folder not found"), std::string::npos);
 }
 
 TEST(EurocDataset, LoadImageErrorsNameTheFile) {
-  const fs::path dir = fs::temp_directory_path() / "linnet_test_io_images";
-  fs::create_directories(dir);
+  const io_test::TempDir dir("images");
   try {
     EurocDataset::loadImage((dir / "absent.png").string());
     FAIL() << "no error";

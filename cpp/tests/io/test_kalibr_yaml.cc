@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "io_test_util.h"
 #include "linnet/core/error.h"
 #include "linnet/io/euroc_dataset.h"
 #include "linnet/io/kalibr_yaml.h"
@@ -16,13 +17,6 @@ namespace linnet {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path tempDir(const std::string& name) {
-  auto dir = fs::temp_directory_path() / ("linnet_test_io_kalibr_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 /// A 4x4 transform as Kalibr writes it: a list of four rows.
 std::string kalibrMatrix(const Pose& T, const std::string& indent) {
@@ -69,7 +63,7 @@ TEST(KalibrYaml, CamchainMatchesTheEurocSensorYaml) {
   const fs::path mav0 = testing::eurocMicroDir() / "mav0";
   const CameraCalibration c0 = readCameraSensorYaml((mav0 / "cam0" / "sensor.yaml").string());
   const CameraCalibration c1 = readCameraSensorYaml((mav0 / "cam1" / "sensor.yaml").string());
-  const fs::path dir = tempDir("camchain");
+  const io_test::TempDir dir("camchain");
   for (bool chained : {false, true}) {
     std::ofstream(dir / "camchain.yaml") << eurocCamchain(c0, c1, chained, 0.0);
     const KalibrCamchain chain = readKalibrCamchain((dir / "camchain.yaml").string());
@@ -88,7 +82,7 @@ TEST(KalibrYaml, CamchainMatchesTheEurocSensorYaml) {
 }
 
 TEST(KalibrYaml, ImuYamlNestedAndFlat) {
-  const fs::path dir = tempDir("imu");
+  const io_test::TempDir dir("imu");
   std::ofstream(dir / "imu.yaml")
       << "imu0:\n  T_i_b:\n  - [1, 0, 0, 0.5]\n  - [0, 1, 0, 0]\n  - [0, 0, 1, 0]\n"
          "  - [0, 0, 0, 1]\n  accelerometer_noise_density: 0.0028\n"
@@ -113,7 +107,7 @@ TEST(KalibrYaml, ImuYamlNestedAndFlat) {
 }
 
 TEST(KalibrYaml, CamchainErrorsNameKeyPaths) {
-  const fs::path dir = tempDir("camchain_errors");
+  const io_test::TempDir dir("camchain_errors");
   std::ofstream(dir / "a.yaml") << "cam0:\n  camera_model: pinhole\n  intrinsics: [1, 1, 0, 0]\n"
                                    "  resolution: [10, 10]\n  distortion_model: equidistant\n"
                                    "  distortion_coeffs: [0, 0, 0, 0]\n";
@@ -145,38 +139,13 @@ TEST(KalibrYaml, CamchainErrorsNameKeyPaths) {
   EXPECT_THROW(readKalibrCamchain((dir / "d.yaml").string()), InputError);
 }
 
-/// A small EuRoC copy (5 frames) under `root`.
-void smallCopy(const fs::path& root) {
-  const fs::path src = testing::eurocMicroDir() / "mav0";
-  const fs::path dst = root / "mav0";
-  for (const char* cam : {"cam0", "cam1"}) {
-    fs::create_directories(dst / cam / "data");
-    std::ifstream in(src / cam / "data.csv");
-    std::ofstream out(dst / cam / "data.csv");
-    std::string line;
-    for (int i = 0; i < 6 && std::getline(in, line); ++i) {
-      out << line << "\n";
-      if (i > 0) {
-        const std::string file = line.substr(line.find(',') + 1);
-        fs::copy_file(src / cam / "data" / file, dst / cam / "data" / file);
-      }
-    }
-  }
-  fs::create_directories(dst / "imu0");
-  fs::copy_file(src / "imu0" / "sensor.yaml", dst / "imu0" / "sensor.yaml");
-  std::ifstream in(src / "imu0" / "data.csv");
-  std::ofstream out(dst / "imu0" / "data.csv");
-  std::string line;
-  for (int i = 0; i < 200 && std::getline(in, line); ++i) out << line << "\n";
-}
-
 TEST(KalibrYaml, DatasetWithCamchainInsteadOfSensorYaml) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
   const fs::path mav0 = testing::eurocMicroDir() / "mav0";
   const CameraCalibration c0 = readCameraSensorYaml((mav0 / "cam0" / "sensor.yaml").string());
   const CameraCalibration c1 = readCameraSensorYaml((mav0 / "cam1" / "sensor.yaml").string());
-  const fs::path root = tempDir("dataset");
-  smallCopy(root);  // no camN/sensor.yaml: the camchain must be used
+  const io_test::TempDir root("kalibr_dataset");
+  io_test::copyEurocSubset(root, 5, 199, 0, false);  // no camN/sensor.yaml: the camchain must be used
   std::ofstream(root / "camchain.yaml") << eurocCamchain(c0, c1, true, 0.002);
   EurocOpenOptions o;
   o.camchain = (root / "camchain.yaml").string();
@@ -208,11 +177,8 @@ TEST(KalibrYaml, DatasetWithCamchainInsteadOfSensorYaml) {
 
 TEST(KalibrYaml, MissingImagesCanBeDropped) {
   LINNET_REQUIRE_SHARED_DATA(testing::eurocMicroDir());
-  const fs::path root = tempDir("drop");
-  smallCopy(root);
-  const fs::path mav0 = testing::eurocMicroDir() / "mav0";
-  for (const char* cam : {"cam0", "cam1"})
-    fs::copy_file(mav0 / cam / "sensor.yaml", root / "mav0" / cam / "sensor.yaml");
+  const io_test::TempDir root("kalibr_drop");
+  io_test::copyEurocSubset(root, 5, 199, 0, true);
   fs::remove(root / "mav0" / "cam1" / "data" / "1403715273462142976.png");
   EXPECT_THROW(EurocDataset::open(root.string()), InputError);
   EurocOpenOptions o;

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "io_test_util.h"
 #include "linnet/core/error.h"
 #include "linnet/io/map_io.h"
 #include "linnet/io/trajectory_io.h"
@@ -15,13 +16,6 @@ namespace linnet {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path tempDir(const std::string& name) {
-  auto dir = fs::temp_directory_path() / ("linnet_test_io_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 std::string readAll(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -57,7 +51,7 @@ std::string readError(const fs::path& p) {
 }
 
 TEST(TrajectoryIo, TumRoundTripIsExact) {
-  const auto dir = tempDir("tum");
+  const io_test::TempDir dir("tum");
   const auto states = randomTrajectory(200, 1);
   const std::string path = (dir / "traj.tum").string();
   writeTum(path, states);
@@ -77,7 +71,7 @@ TEST(TrajectoryIo, TumRoundTripIsExact) {
 }
 
 TEST(TrajectoryIo, EurocCsvRoundTripIsExact) {
-  const auto dir = tempDir("csv");
+  const io_test::TempDir dir("csv");
   const auto states = randomTrajectory(200, 2);
   const std::string path = (dir / "traj.csv").string();
   writeTrajectory(path, states, trajectoryFormatFromPath(path));
@@ -105,7 +99,7 @@ TEST(TrajectoryIo, EurocCsvRoundTripIsExact) {
 }
 
 TEST(TrajectoryIo, StreamingWriterMatchesWholeFileWriter) {
-  const auto dir = tempDir("stream");
+  const io_test::TempDir dir("stream");
   const auto states = randomTrajectory(50, 3);
   for (auto format : {TrajectoryFormat::kTum, TrajectoryFormat::kEurocCsv}) {
     const std::string a = (dir / "a.txt").string(), b = (dir / "b.txt").string();
@@ -144,7 +138,7 @@ TEST(TrajectoryIo, ReadsTheSharedGroundTruthFiles) {
 }
 
 TEST(TrajectoryIo, ErrorsNameFileAndLine) {
-  const auto dir = tempDir("traj_errors");
+  const io_test::TempDir dir("traj_errors");
   const auto write = [&](const char* name, const std::string& text) {
     std::ofstream(dir / name) << text;
     return dir / name;
@@ -172,7 +166,7 @@ TEST(TrajectoryIo, ErrorsNameFileAndLine) {
 }
 
 TEST(MapIo, PlyRoundTripWithPointsSegmentsAndColours) {
-  const auto dir = tempDir("ply");
+  const io_test::TempDir dir("ply");
   MapGeometry map;
   map.points = {Vec3(0.1, 0.2, 0.3), Vec3(-1e-9, 5.5, 1e6), Vec3(1.0 / 3.0, 0, 0)};
   map.point_colors = {{255, 0, 0}, {0, 255, 0}, {1, 2, 3}};
@@ -206,7 +200,7 @@ TEST(MapIo, PlyRoundTripWithPointsSegmentsAndColours) {
 }
 
 TEST(MapIo, ObjAndErrors) {
-  const auto dir = tempDir("obj");
+  const io_test::TempDir dir("obj");
   MapGeometry map;
   map.points = {Vec3(1, 2, 3)};
   map.segments = {{Vec3(0, 0, 0), Vec3(1, 1, 1)}};
