@@ -110,7 +110,9 @@ void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {
   }
   writeTum((fs::path(out_dir) / "trajectory.tum").string(), states);
   writeEurocCsv((fs::path(out_dir) / "trajectory.csv").string(), states);
-  writePointsPly((fs::path(out_dir) / "map.ply").string(), summary.map_points);
+  MapGeometry map;
+  map.points = summary.map_points;
+  writePly((fs::path(out_dir) / "map.ply").string(), map);
 
   const std::string timing_path = (fs::path(out_dir) / "timing.csv").string();
   std::FILE* f = std::fopen(timing_path.c_str(), "w");
