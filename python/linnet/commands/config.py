@@ -22,8 +22,7 @@ def COMMAND(dataset, config_file, out):
             cfg.merge(str(config_file))
     except linnet.Error as e:
         raise click.ClickException(str(e))
-    text = cfg.to_yaml()
     if out:
-        out.write_text(text)
+        cfg.save(str(out))  # with every key's documentation and range as comments
     else:
-        click.echo(text, nl=False)
+        click.echo(cfg.to_yaml(), nl=False)
