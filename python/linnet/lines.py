@@ -218,9 +218,37 @@ def match_segment(det: np.ndarray, gt_poly: np.ndarray, tol_px: float = 2.0, min
     return inter >= min_overlap * denom
 
 
+def _coverage(dets: np.ndarray, poly: np.ndarray, tol_px: float) -> float:
+    """Fraction of the polyline's length covered by the union of detections lying on it (both endpoints within tol)."""
+    total = float(np.linalg.norm(np.diff(poly, axis=0), axis=1).sum())
+    spans = []
+    for d in dets:
+        d0, a0 = _polyline_param(poly, d[:2])
+        if d0 > tol_px:
+            continue
+        d1, a1 = _polyline_param(poly, d[2:])
+        if d1 > tol_px:
+            continue
+        spans.append((min(a0, a1), max(a0, a1)))
+    if not spans or total <= 0:
+        return 0.0
+    spans.sort()
+    covered, lo, hi = 0.0, spans[0][0], spans[0][1]
+    for a, b in spans[1:]:
+        if a > hi:
+            covered += hi - lo
+            lo, hi = a, b
+        else:
+            hi = max(hi, b)
+    covered += hi - lo
+    return covered / total
+
+
 def detection_recall(dets: np.ndarray, gt_polys: Sequence[np.ndarray], min_length_px: float = 40.0,
                      tol_px: float = 2.0, min_overlap: float = 0.5) -> tuple[int, int]:
-    """(matched, considered) ground-truth segments: those longer than min_length_px, matched by any detection."""
+    """(matched, considered) ground-truth segments: those longer than min_length_px whose length is covered at least
+    min_overlap by detections lying on them (both endpoints within tol_px). Coverage is the union of detections, so a
+    segment bent by lens distortion and detected as two straight pieces counts as found."""
     dets = np.asarray(dets, dtype=float).reshape(-1, 4)
     considered = matched = 0
     for poly in gt_polys:
@@ -228,7 +256,9 @@ def detection_recall(dets: np.ndarray, gt_polys: Sequence[np.ndarray], min_lengt
         if len(poly) < 2 or np.linalg.norm(np.diff(poly, axis=0), axis=1).sum() < min_length_px:
             continue
         considered += 1
-        if any(match_segment(d, poly, tol_px, min_overlap, "gt") for d in dets):
+        lo, hi = poly.min(0) - tol_px, poly.max(0) + tol_px
+        near = dets[np.all((dets[:, :2] >= lo) & (dets[:, :2] <= hi) & (dets[:, 2:] >= lo) & (dets[:, 2:] <= hi), 1)]
+        if len(near) and _coverage(near, poly, tol_px) >= min_overlap:
             matched += 1
     return matched, considered
 
@@ -240,7 +270,12 @@ def assign_segment(det: np.ndarray, gt_polys: Sequence[np.ndarray], tol_px: floa
     det = np.asarray(det, dtype=float).reshape(4)
     for i, poly in enumerate(gt_polys):
         poly = np.asarray(poly, dtype=float)
-        if len(poly) < 2 or not match_segment(det, poly, tol_px, min_overlap, "shorter"):
+        if len(poly) < 2:
+            continue
+        lo, hi = poly.min(0) - tol_px, poly.max(0) + tol_px
+        if np.any(det[:2] < lo) or np.any(det[:2] > hi) or np.any(det[2:] < lo) or np.any(det[2:] > hi):
+            continue
+        if not match_segment(det, poly, tol_px, min_overlap, "shorter"):
             continue
         d = max(_polyline_param(poly, det[:2])[0], _polyline_param(poly, det[2:])[0])
         if d < best_d:
@@ -269,3 +304,129 @@ def percentile_table(values: dict[str, Sequence[float]]) -> dict[str, dict[str, 
         else:
             out[name] = {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)), "max": float(a.max())}
     return out
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Scoring on the simulator (linnet.sim): rendered stereo frames with the scene's true 3D lines and depth.
+
+
+def visible_polylines(lines_W: np.ndarray, cam, T_W_C: np.ndarray, depth: np.ndarray, min_length_px: float = 40.0,
+                      samples: int = 96, depth_tol: float = 0.03) -> list[tuple[int, np.ndarray]]:
+    """Visible parts of 3D segments (N, 2, 3) in one camera: (line index, (M, 2) distorted pixel polyline) for every
+    run of samples that is in front of the camera, inside the image and not behind the rendered surface (depth of
+    the 3x3 neighbourhood's nearest surface >= the sample's depth minus depth_tol relative), longer than min_length_px.
+    """
+    from linnet.sim.rig import project
+
+    if len(lines_W) == 0:
+        return []
+    T_C_W = np.linalg.inv(T_W_C)
+    R, t = T_C_W[:3, :3], T_C_W[:3, 3]
+    a = lines_W[:, 0] @ R.T + t
+    b = lines_W[:, 1] @ R.T + t
+    s = np.linspace(0.0, 1.0, samples)
+    P = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]  # (N, S, 3)
+    z = P[..., 2]
+    px = project(cam, P.reshape(-1, 3)).reshape(len(lines_W), samples, 2)
+    h, w = depth.shape
+    # Nearest surface around each pixel: a 3x3 minimum of the depth (0 = nothing hit counts as far away).
+    d = np.where(depth > 0, depth, np.inf).astype(np.float64)
+    pad = np.pad(d, 1, mode="edge")
+    dmin = np.min([pad[i:i + h, j:j + w] for i in range(3) for j in range(3)], axis=0)
+    with np.errstate(invalid="ignore"):
+        inside = (z > 0.05) & np.all(np.isfinite(px), axis=2) & (px[..., 0] >= 0) & (px[..., 0] <= w - 1) & \
+            (px[..., 1] >= 0) & (px[..., 1] <= h - 1)
+    xi = np.clip(np.nan_to_num(np.round(px[..., 0])), 0, w - 1).astype(int)
+    yi = np.clip(np.nan_to_num(np.round(px[..., 1])), 0, h - 1).astype(int)
+    visible = inside & (dmin[yi, xi] >= z * (1.0 - depth_tol))
+    out = []
+    for i in np.flatnonzero(visible.any(axis=1)):
+        v = visible[i].astype(np.int8)
+        edges = np.flatnonzero(np.diff(np.r_[0, v, 0]))
+        for lo, hi in zip(edges[::2], edges[1::2]):
+            if hi - lo < 2:
+                continue
+            poly = px[i, lo:hi]
+            if np.linalg.norm(np.diff(poly, axis=0), axis=1).sum() >= min_length_px:
+                out.append((int(i), poly))
+    return out
+
+
+def _label(seg: np.ndarray, gt: list[tuple[int, np.ndarray]], tol_px: float) -> int:
+    k = assign_segment(seg, [p for _, p in gt], tol_px)
+    return gt[k][0] if k >= 0 else -1
+
+
+def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float = 0.0, seed: int = 0,
+              options: Optional[dict] = None, tol_px: float = 2.0, min_length_px: float = 40.0,
+              progress=None) -> dict:
+    """Renders the simulated replay (trajectory, scene) frame by frame, runs the LineTracker on it and scores it
+    against the true 3D lines: detection recall (left image, all detections), temporal and stereo match precision
+    (a match is correct when both sides lie on the same true line), track lengths, timings."""
+    from linnet import _linnet
+    from linnet.sim.simulator import _pose, prepare
+
+    rp = prepare(trajectory, scene, seed=seed, start=start, duration=duration)
+    native = rp.scene.to_native()
+    cams = rp.cameras
+    renderers = [c.renderer() for c in cams]
+    lines_W = np.array([[a, b] for a, b, _kind in rp.scene.lines], dtype=float).reshape(-1, 2, 3)
+    cam_dicts = [{"width": c.width, "height": c.height, "intrinsics": list(c.intrinsics), "distortion": c.distortion,
+                  "distortion_coeffs": list(c.coeffs)} for c in cams]
+    T_C1_C0 = np.linalg.inv(cams[1].T_B_C) @ cams[0].T_B_C
+    tracker = _linnet.LineTracker(cam_dicts[0], cam_dicts[1], T_C1_C0, dict(options or {}))
+    det_opts = {k: v for k, v in (options or {}).items() if k.startswith("detection.")}
+    state = rp.spline.evaluate(rp.cam_t)
+    recall_hit = recall_all = 0
+    temporal = [0, 0]
+    stereo = [0, 0]
+    prev_label: dict[int, int] = {}
+    final_length: dict[int, int] = {}
+    per_frame = {"lines": [], "stereo": [], "total_ms": [], "cpu_total_ms": [], "cpu_left_ms": []}
+    n = len(rp.cam_t)
+    for k, t in enumerate(rp.cam_t):
+        T_W_B = _pose(state.R[k], state.p[k])
+        T_W_C = [T_W_B @ c.T_B_C for c in cams]
+        imgs = [r.render(native, T, 1.0, (seed * 1_000_003 + k) * 2 + c) for c, (r, T) in
+                enumerate(zip(renderers, T_W_C))]
+        depth = [r.render_depth(native, T) for r, T in zip(renderers, T_W_C)]
+        gt = [visible_polylines(lines_W, c, T, d, min_length_px=min(min_length_px, 20.0)) for c, T, d in
+              zip(cams, T_W_C, depth)]
+        obs = tracker.track(int(t), imgs[0], imgs[1])
+        tm = tracker.last_timings()
+        dets = _linnet.detect_lines(imgs[0], det_opts)
+        hit, considered = detection_recall(dets, [p for _, p in gt[0]], min_length_px, tol_px)
+        recall_hit += hit
+        recall_all += considered
+        labels_now = {}
+        for j, i in enumerate(obs["id"].tolist()):
+            l0 = _label(np.r_[obs["ps0"][j], obs["pe0"][j]], gt[0], tol_px)
+            labels_now[i] = l0
+            if i in prev_label:
+                c_, j_ = pair_precision([prev_label[i]], [l0])
+                temporal[0] += c_
+                temporal[1] += j_
+            if obs["has_right"][j]:
+                l1 = _label(np.r_[obs["ps1"][j], obs["pe1"][j]], gt[1], tol_px)
+                c_, j_ = pair_precision([l0], [l1])
+                stereo[0] += c_
+                stereo[1] += j_
+            final_length[i] = int(obs["track_length"][j])
+        prev_label = labels_now
+        per_frame["lines"].append(len(obs["id"]))
+        per_frame["stereo"].append(int(obs["has_right"].sum()))
+        for key in ("total_ms", "cpu_total_ms", "cpu_left_ms"):
+            per_frame[key].append(tm[key])
+        if progress is not None:
+            progress(k + 1, n)
+    lengths = list(final_length.values())
+    return {
+        "trajectory": str(trajectory), "scene": scene, "frames": n, "duration_s": duration,
+        "detection_recall": recall_hit / max(1, recall_all), "gt_segments_considered": recall_all,
+        "temporal_precision": temporal[0] / max(1, temporal[1]), "temporal_judged": temporal[1],
+        "stereo_precision": stereo[0] / max(1, stereo[1]), "stereo_judged": stereo[1],
+        "median_track_length_per_id": float(np.median(lengths)) if lengths else 0.0,
+        "median_lines_per_frame": float(np.median(per_frame["lines"])),
+        "median_stereo_per_frame": float(np.median(per_frame["stereo"])),
+        "timing_ms": percentile_table({k: per_frame[k] for k in ("total_ms", "cpu_total_ms", "cpu_left_ms")}),
+    }
