@@ -1,10 +1,13 @@
 // The shared Jacobian checker must pass correct Jacobians and FAIL on wrong ones (DESIGN A5).
 #include <cmath>
+#include <memory>
 #include <random>
 
 #include <ceres/sized_cost_function.h>
 #include <gtest/gtest.h>
 
+#include "imu/imu_test_motion.h"
+#include "linnet/estimator/factors/imu_factor.h"
 #include "linnet/estimator/manifolds.h"
 #include "support/jacobian_check.h"
 
@@ -66,6 +69,34 @@ class PoseLandmarkFactor : public ceres::SizedCostFunction<6, 7, 3> {
  private:
   Quat q_ref_;
   Bug bug_;
+};
+
+// Wraps a correct cost function and corrupts its ambient Jacobian of one block after the fact: one entry
+// scaled, or one ambient column zeroed.
+class CorruptingWrapper : public ceres::CostFunction {
+ public:
+  enum class Mode { kScaleEntry, kZeroColumn };
+  CorruptingWrapper(const ceres::CostFunction& inner, int block, int row, int col, Mode mode)
+      : inner_(inner), block_(block), row_(row), col_(col), mode_(mode) {
+    set_num_residuals(inner.num_residuals());
+    *mutable_parameter_block_sizes() = inner.parameter_block_sizes();
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    if (!inner_.Evaluate(parameters, residuals, jacobians)) return false;
+    if (jacobians == nullptr || jacobians[block_] == nullptr) return true;
+    const int cols = parameter_block_sizes()[block_];
+    if (mode_ == Mode::kScaleEntry) {
+      jacobians[block_][row_ * cols + col_] *= 1.01;
+    } else {
+      for (int r = 0; r < num_residuals(); ++r) jacobians[block_][r * cols + col_] = 0.0;
+    }
+    return true;
+  }
+
+ private:
+  const ceres::CostFunction& inner_;
+  int block_, row_, col_;
+  Mode mode_;
 };
 
 struct Fixture {
@@ -162,6 +193,47 @@ TEST(JacobianChecker, ReportsStructuralMisuse) {
   EXPECT_FALSE(checkJacobians(f, {fx.pose}, {}).ok(1.0));
   EXPECT_FALSE(checkJacobians(f, {fx.pose, fx.landmark}, {&pm}).ok(1.0));
   EXPECT_FALSE(checkJacobians(f, {fx.pose, fx.landmark}, {nullptr, &pm}).ok(1.0));  // ambient 7 on a 3-block
+}
+
+TEST(JacobianChecker, CatchesCorruptionsOfTheRealImuFactor) {
+  const testing::SmoothMotion m;
+  constexpr Timestamp kMs = 1'000'000;
+  const Vec3 b_a(0.05, -0.03, 0.1), b_g(0.004, 0.002, -0.006);
+  const auto pre = std::make_shared<Preintegration>(m.samples(0, 400 * kMs, 5 * kMs, b_a, b_g), ImuNoise(),
+                                                    Vec3::Zero(), Vec3::Zero());
+  const ImuFactor factor(pre, 9.81);
+  const ImuState si = m.state(0, b_a, b_g), sj = m.state(400 * kMs, 1.1 * b_a, 0.9 * b_g);
+  double pose_i[7], pose_j[7], sb_i[9], sb_j[9];
+  setPose(si.T_W_B, pose_i);
+  setPose(Pose(sj.T_W_B.q * expSO3(Vec3(0.02, -0.01, 0.03)), sj.T_W_B.p + Vec3(0.05, 0.0, -0.02)), pose_j);
+  for (int k = 0; k < 3; ++k) {
+    sb_i[k] = si.v_W[k];
+    sb_i[3 + k] = si.b_a[k];
+    sb_i[6 + k] = si.b_g[k];
+    sb_j[k] = sj.v_W[k] + 0.01;
+    sb_j[3 + k] = sj.b_a[k];
+    sb_j[6 + k] = sj.b_g[k];
+  }
+  const std::vector<double*> params = {pose_i, sb_i, pose_j, sb_j};
+  const PoseManifold pm;
+  const std::vector<const ceres::Manifold*> manifolds = {&pm, nullptr, &pm, nullptr};
+  EXPECT_TRUE(jacobiansMatch(factor, params, manifolds, 1e-5, 1e-5));
+  using Mode = CorruptingWrapper::Mode;
+  struct Case {
+    int block, row, col;
+    Mode mode;
+  };
+  // A rotation-residual entry of pose_i's quaternion part, a velocity column of speed-bias_i, the gyro-bias
+  // entry of the rotation residual (the bias-correction Jacobian), and pose_j's position column.
+  for (const Case& c : {Case{0, 3, 4, Mode::kScaleEntry}, Case{1, 0, 1, Mode::kZeroColumn},
+                        Case{1, 4, 7, Mode::kScaleEntry}, Case{2, 0, 0, Mode::kZeroColumn}}) {
+    const CorruptingWrapper bad(factor, c.block, c.row, c.col, c.mode);
+    const auto res = checkJacobians(bad, params, manifolds, 1e-5);
+    EXPECT_FALSE(res.ok(1e-5)) << "corruption of block " << c.block << " (" << c.row << ", " << c.col
+                               << ") not detected:\n"
+                               << res.describe();
+    EXPECT_GT(res.blocks[static_cast<size_t>(c.block)].max_rel_error, 1e-4);
+  }
 }
 
 }  // namespace
