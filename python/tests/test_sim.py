@@ -393,3 +393,31 @@ def test_bad_inputs_name_the_problem(tmp_path):
         prepare("builtin:loop", "room", duration=0.2)
     with pytest.raises(InputError, match="imu-noise"):
         prepare("builtin:loop", "room", imu_noise=str(tmp_path / "nope.yaml"))
+
+
+def test_imu_noise_has_the_requested_densities(tmp_path):
+    from linnet.sim.imu import ImuNoise, synthesize
+
+    s = builtin_loop()
+    spline, _ = SplineTrajectory.fit(s, int(s.t_ns[0]), int(s.t_ns[-1]))
+    t = s.t_ns[0] + np.arange(5000) * 5_000_000
+    noise = ImuNoise()
+    imu = synthesize(spline, t, noise, np.random.default_rng(0))
+    truth = spline.evaluate(t)
+    dt = 0.005
+    white_g = imu.gyr - truth.omega_B - imu.bias_gyr
+    white_a = imu.acc - truth.f_B - imu.bias_acc
+    np.testing.assert_allclose(white_g.std(), noise.gyroscope_noise_density / np.sqrt(dt), rtol=0.05)
+    np.testing.assert_allclose(white_a.std(), noise.accelerometer_noise_density / np.sqrt(dt), rtol=0.05)
+    np.testing.assert_allclose(np.diff(imu.bias_gyr, axis=0).std(), noise.gyroscope_random_walk * np.sqrt(dt),
+                               rtol=0.05)
+    np.testing.assert_allclose(np.diff(imu.bias_acc, axis=0).std(), noise.accelerometer_random_walk * np.sqrt(dt),
+                               rtol=0.05)
+    # A Kalibr-style YAML (with OpenCV's %YAML header) sets the densities; unknown keys are ignored.
+    f = tmp_path / "imu.yaml"
+    f.write_text("%YAML:1.0\nrate_hz: 200\ngyroscope_noise_density: 1.0e-3\naccelerometer_random_walk: 4.0e-4\n")
+    custom = ImuNoise.from_spec(str(f))
+    assert custom.gyroscope_noise_density == 1e-3 and custom.accelerometer_random_walk == 4e-4
+    assert custom.accelerometer_noise_density == noise.accelerometer_noise_density
+    none = synthesize(spline, t, ImuNoise.none(), np.random.default_rng(0))
+    np.testing.assert_array_equal(none.gyr, truth.omega_B)
