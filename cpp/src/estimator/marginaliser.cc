@@ -18,11 +18,19 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 
 std::string keyName(BlockKey key) { return "parameter block key " + std::to_string(key); }
 
-/// Symmetric pseudo-inverse through the eigen-decomposition; eigenvalues <= threshold are treated as zero.
-/// `deficiency` receives how many were.
-Eigen::MatrixXd symmetricPseudoInverse(const Eigen::MatrixXd& A, double threshold, int* deficiency) {
+/// Eigenvalues (ascending) at or below this count as zero: the absolute and the relative threshold.
+double effectiveThreshold(const Eigen::VectorXd& eigenvalues, const MarginaliserOptions& o) {
+  const double largest = eigenvalues.size() > 0 ? eigenvalues(eigenvalues.size() - 1) : 0.0;
+  return std::max(o.eigenvalue_threshold, o.relative_eigenvalue_threshold * largest);
+}
+
+/// Symmetric pseudo-inverse through the eigen-decomposition; eigenvalues at or below the effective threshold are
+/// treated as zero. `deficiency` receives how many were.
+Eigen::MatrixXd symmetricPseudoInverse(const Eigen::MatrixXd& A, const MarginaliserOptions& options,
+                                       int* deficiency) {
   const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(S);
+  const double threshold = effectiveThreshold(es.eigenvalues(), options);
   Eigen::VectorXd inv = es.eigenvalues();
   int zeros = 0;
   for (Eigen::Index i = 0; i < inv.size(); ++i) {
@@ -261,7 +269,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     for (int i = 0, o = 0; i < static_cast<int>(p_sizes.size()); o += p_sizes[static_cast<std::size_t>(i)], ++i) {
       const int t = p_sizes[static_cast<std::size_t>(i)];
       int def = 0;
-      const Eigen::MatrixXd inv = symmetricPseudoInverse(H.block(o, o, t, t), options_.eigenvalue_threshold, &def);
+      const Eigen::MatrixXd inv = symmetricPseudoInverse(H.block(o, o, t, t), options_, &def);
       deficiency += def;
       X.middleCols(o, t).noalias() = H.block(m1, o, rest, t) * inv;
       y.segment(o, t).noalias() = inv * g.segment(o, t);
@@ -276,8 +284,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   // Stage 2: H* = H_rr - H_rm H_mm^+ H_mr, g* = g_r - H_rm H_mm^+ g_m over the remaining dropped blocks.
   const int m2 = m - m1;
   int def2 = 0;
-  const Eigen::MatrixXd Hmm_inv = symmetricPseudoInverse(H.topLeftCorner(m2, m2), options_.eigenvalue_threshold,
-                                                         &def2);
+  const Eigen::MatrixXd Hmm_inv = symmetricPseudoInverse(H.topLeftCorner(m2, m2), options_, &def2);
   deficiency += def2;
   const Eigen::MatrixXd Hrm_Hmm_inv = H.bottomLeftCorner(n, m2) * Hmm_inv;
   Eigen::MatrixXd H_star = H.bottomRightCorner(n, n) - Hrm_Hmm_inv * H.topRightCorner(m2, n);
@@ -293,8 +300,9 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   // H* = V S V^T  ->  J = sqrt(S) V^T, r = sqrt(S)^-1 V^T g*, keeping eigenvalues above the threshold.
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(H_star);
   std::vector<int> keep;
+  const double threshold = effectiveThreshold(es.eigenvalues(), options_);
   for (int i = 0; i < n; ++i)
-    if (es.eigenvalues()(i) > options_.eigenvalue_threshold) keep.push_back(i);
+    if (es.eigenvalues()(i) > threshold) keep.push_back(i);
   stats_.prior_rank = static_cast<int>(keep.size());
   if (keep.empty()) return nullptr;
 

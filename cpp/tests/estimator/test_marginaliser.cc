@@ -259,6 +259,29 @@ TEST(Marginaliser, RankDeficientPriorKeepsOnlyObservableDirections) {
   EXPECT_LT((H - 0.9 * A1.transpose() * A1).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+TEST(Marginaliser, RelativeThresholdDropsRoundOffLevelDirections) {
+  // Kept block b (2-D): one direction with information ~1e8, one with 9e-8 (above the absolute 1e-8 threshold but
+  // 1e-15 of the largest: numerically meaningless). The relative threshold removes it; without it, it stays.
+  Eigen::MatrixXd Aa(2, 1), Ab(2, 2), one = Eigen::MatrixXd::Ones(1, 1);
+  Aa << 0.0, 0.0;  // a is only structurally connected: H* is exactly H_bb
+  Ab << 1e4, 0.0, 0.0, 3e-4;
+  const double a[1] = {0.0}, b[2] = {0.0, 0.0};
+  for (double relative : {1e-13, 0.0}) {
+    MarginaliserOptions options;
+    options.relative_eigenvalue_threshold = relative;
+    Marginaliser m(options);
+    m.addParameterBlock(0, a, 1, nullptr);
+    m.addParameterBlock(1, b, 2, nullptr);
+    m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{Aa, Ab}, Eigen::VectorXd::Ones(2)),
+                  nullptr, {0, 1});
+    m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{one}, Eigen::VectorXd::Zero(1)),
+                  nullptr, {0});
+    auto prior = m.marginalise({0});
+    ASSERT_TRUE(prior);
+    EXPECT_EQ(prior->J.rows(), relative > 0.0 ? 1 : 2) << "relative threshold " << relative;
+  }
+}
+
 /// r = M b - z over blocks (a[1], b[2]) with no dependence on a, so that the prior on b is exactly the robustified
 /// Gauss-Newton system of this one residual.
 class DecoupledResidual : public ceres::SizedCostFunction<2, 1, 2> {

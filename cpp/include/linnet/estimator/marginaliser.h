@@ -37,9 +37,15 @@ struct MarginaliserOptions {
                                        // (pseudo-inverse; the prior keeps only directions above it). Units: information
                                        // (1 / tangent unit^2).
 
+  double relative_eigenvalue_threshold = 1e-13;  // ... and so are eigenvalues below this times the largest one of the
+                                                 // same matrix (round-off level: condition numbers past ~1e13 carry
+                                                 // no information in double precision). Dimensionless.
+
   template <class V>
   void visit(V& v) {
     v("eigenvalue_threshold", eigenvalue_threshold, "eigenvalues below this count as zero", 0.0, 1e3);
+    v("relative_eigenvalue_threshold", relative_eigenvalue_threshold,
+      "eigenvalues below this times the largest count as zero", 0.0, 1e-3);
   }
 };
 
