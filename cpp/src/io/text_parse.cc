@@ -87,6 +87,7 @@ TextFile TextFile::read(const std::string& path) {
       file.map_size_ = static_cast<std::size_t>(st.st_size);
       file.data_ = static_cast<const char*>(m);
       file.size_ = file.map_size_;
+      file.skipBom();
       return file;
     }
   }
@@ -98,7 +99,21 @@ TextFile TextFile::read(const std::string& path) {
   if (n < 0) failInput(path, 0, "read error");
   file.data_ = file.owned_.data();
   file.size_ = file.owned_.size();
+  file.skipBom();
   return file;
+}
+
+void TextFile::skipBom() {
+  // A UTF-8 byte order mark (files saved by some Windows editors) is not part of the first line.
+  if (text().substr(0, 3) != "\xEF\xBB\xBF") return;
+  if (map_) {
+    data_ += 3;
+    size_ -= 3;
+  } else {
+    owned_.erase(0, 3);
+    data_ = owned_.data();
+    size_ = owned_.size();
+  }
 }
 
 TextFile TextFile::fromString(std::string text, std::string name) {
@@ -107,6 +122,7 @@ TextFile TextFile::fromString(std::string text, std::string name) {
   file.owned_ = std::move(text);
   file.data_ = file.owned_.data();
   file.size_ = file.owned_.size();
+  file.skipBom();
   return file;
 }
 

@@ -96,6 +96,23 @@ void decode(const YAML::Node& n, const Context& ctx, std::string& out) {
   out = scalarOf(n, ctx, "a string");
 }
 
+void decode(const YAML::Node& n, const Context& ctx, std::vector<bool>& out) {
+  if (!n.IsSequence()) ctx.fail(n, "expects a list, got " + describe(n));
+  std::vector<bool> result(n.size());
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    bool b = false;
+    decode(n[i], ctx.child(std::to_string(i)), b);
+    result[i] = b;
+  }
+  out = std::move(result);
+}
+
+void encode(YAML::Emitter& out, const std::vector<bool>& v) {
+  out << YAML::Flow << YAML::BeginSeq;
+  for (bool b : v) encode(out, b);
+  out << YAML::EndSeq;
+}
+
 std::int64_t decodeInteger(const YAML::Node& n, const Context& ctx, std::int64_t lo, std::uint64_t hi) {
   const std::string s = scalarOf(n, ctx, "an integer");
   std::int64_t v = 0;

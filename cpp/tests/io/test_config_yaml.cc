@@ -260,6 +260,53 @@ TEST(ConfigYaml, FileErrorsAreInputErrors) {
   }
 }
 
+struct MoreTypes {
+  std::vector<bool> flags{true, false};
+  std::vector<int> ids{1, 2};
+  std::vector<std::string> names{"a", "true", ""};
+  Mat3 K = Mat3::Identity();
+  unsigned count = 3;
+  template <class V>
+  void visit(V& v) {
+    v("flags", flags, "");
+    v("ids", ids, "");
+    v("names", names, "");
+    v("K", K, "");
+    v("count", count, "", 0u, 10u);
+  }
+};
+
+TEST(ConfigYaml, ContainersMatrixFormsAndUnsigned) {
+  MoreTypes m;
+  loadOptions(YAML::Load("flags: [no, yes, on]\nids: []\nK: [[1, 2, 3], [4, 5, 6], [7, 8, 9]]\n"), m,
+              "m.yaml");
+  EXPECT_EQ(m.flags, (std::vector<bool>{false, true, true}));
+  EXPECT_TRUE(m.ids.empty());
+  EXPECT_EQ(m.K(1, 0), 4.0);
+  loadOptions(YAML::Load("K: {rows: 3, cols: 3, data: [9, 8, 7, 6, 5, 4, 3, 2, 1]}\n"), m, "m.yaml");
+  EXPECT_EQ(m.K(0, 0), 9.0);
+  MoreTypes r;
+  r.names.clear();
+  loadOptions(saveOptions(m), r, "self");
+  EXPECT_EQ(r.flags, m.flags);
+  EXPECT_EQ(r.names, m.names);  // "true" and "" come back as strings
+  EXPECT_EQ(r.K, m.K);
+  try {
+    loadOptions(YAML::Load("count: -1\n"), m, "m.yaml");
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("m.yaml:1: key 'count' = -1 does not fit"), std::string::npos)
+        << e.what();
+  }
+  try {
+    loadOptions(YAML::Load("K: {rows: 2, cols: 2, data: [1, 2, 3, 4]}\n"), m, "m.yaml");
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("key 'K' expects a 3x3 matrix, got 2x2"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(ConfigYaml, ValidatorAndReaderAgreeOnDefaults) {
   RootOptions o;
   EXPECT_NO_THROW(validateOptions(o));

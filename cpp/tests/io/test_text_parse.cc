@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "io_test_util.h"
 #include "linnet/core/error.h"
 #include "linnet/io/text_parse.h"
 
@@ -138,6 +139,26 @@ TEST(TextParse, ChunkedParsingKeepsOrderAndLineNumbersForAnyThreadCount) {
   EXPECT_EQ(file.lineOfDataRow(0), 2);
   EXPECT_EQ(file.lineOfDataRow(49999), 50001);
   EXPECT_EQ(file.lineOfDataRow(50000), 0);
+}
+
+TEST(TextParse, ByteOrderMarkAndEmptyFile) {
+  TextFile bom = TextFile::fromString("\xEF\xBB\xBF#header\n1,2\n", "bom.csv");
+  TextLines lines = bom.lines();
+  std::string_view line;
+  ASSERT_TRUE(lines.nextData(&line));
+  EXPECT_EQ(line, "1,2");
+  EXPECT_EQ(lines.line(), 2);
+  // The same from a file on disk (memory-mapped).
+  const io_test::TempDir dir("bom");
+  io_test::writeFile(dir / "bom.csv", "\xEF\xBB\xBF#header\r\n1,2\r\n");
+  const TextFile mapped = TextFile::read((dir / "bom.csv").string());
+  EXPECT_EQ(mapped.text(), "#header\r\n1,2\r\n");
+  io_test::writeFile(dir / "empty.csv", "");
+  EXPECT_EQ(TextFile::read((dir / "empty.csv").string()).sizeBytes(), 0u);
+  const TextFile empty = TextFile::fromString("", "empty.csv");
+  TextLines none = empty.lines();
+  EXPECT_FALSE(none.next(&line));
+  EXPECT_TRUE(parseRows<int>(empty, 4, [](const TextLines&, std::string_view) { return 1; }).empty());
 }
 
 TEST(TextParse, MissingFileAndDirectory) {

@@ -45,7 +45,7 @@ class TextLines {
   long line_no_ = 0;
 };
 
-/// A whole text file in memory (memory-mapped when possible).
+/// A whole text file in memory (memory-mapped when possible), without a leading UTF-8 byte order mark.
 class TextFile {
  public:
   /// Throws InputError "<path>: ..." if the file is missing, a directory or unreadable.
@@ -70,6 +70,7 @@ class TextFile {
 
  private:
   TextFile() = default;
+  void skipBom();
   std::string path_;
   std::string owned_;  // contents when not memory-mapped
   const char* data_ = nullptr;

@@ -57,6 +57,8 @@ bool stringNeedsQuotes(const std::string& s);
 void decode(const YAML::Node& n, const Context& ctx, bool& out);
 void decode(const YAML::Node& n, const Context& ctx, std::string& out);
 void decode(const YAML::Node& n, const Context& ctx, Pose& out);
+void decode(const YAML::Node& n, const Context& ctx,
+            std::vector<bool>& out);  // std::vector<bool> has proxies
 std::int64_t decodeInteger(const YAML::Node& n, const Context& ctx, std::int64_t lo, std::uint64_t hi);
 double decodeReal(const YAML::Node& n, const Context& ctx);
 /// Numbers of a matrix node (any accepted form) in row-major order; checks the shape when it is given.
@@ -120,6 +122,7 @@ void decode(const YAML::Node& n, const Context& ctx, std::array<T, N>& out) {
 void encode(YAML::Emitter& out, bool v);
 void encode(YAML::Emitter& out, const std::string& v);
 void encode(YAML::Emitter& out, const Pose& v);
+void encode(YAML::Emitter& out, const std::vector<bool>& v);
 void encodeReal(YAML::Emitter& out, double v);  // shortest text that reads back to the same double
 void encodeInteger(YAML::Emitter& out, std::int64_t v);
 
