@@ -24,27 +24,27 @@ int numLevels(const std::vector<cv::Mat>& pyr) {
   return static_cast<int>(with_deriv ? pyr.size() / 2 : pyr.size());
 }
 
-// Zero-mean patch of (2h+1)^2 pixels at integer centre; false when it leaves the image or is flat.
-bool patch(const cv::Mat& img, int cx, int cy, int h, std::vector<float>* out) {
+// Zero-mean, unit-norm patch of (2h+1)^2 pixels at an integer centre into out (resized by the caller); false when
+// it leaves the image or is flat.
+bool patch(const cv::Mat& img, int cx, int cy, int h, float* out) {
   if (cx - h < 0 || cy - h < 0 || cx + h >= img.cols || cy + h >= img.rows) return false;
-  out->clear();
-  double sum = 0.0;
+  const int side = 2 * h + 1, count = side * side;
+  int sum = 0, sum2 = 0;
+  float* o = out;
   for (int y = cy - h; y <= cy + h; ++y) {
-    const unsigned char* row = img.ptr<unsigned char>(y);
-    for (int x = cx - h; x <= cx + h; ++x) {
-      out->push_back(row[x]);
-      sum += row[x];
+    const unsigned char* row = img.ptr<unsigned char>(y) + (cx - h);
+    for (int x = 0; x < side; ++x) {
+      const int v = row[x];
+      sum += v;
+      sum2 += v * v;
+      *o++ = static_cast<float>(v);
     }
   }
-  const float mean = static_cast<float>(sum / out->size());
-  double ss = 0.0;
-  for (float& v : *out) {
-    v -= mean;
-    ss += static_cast<double>(v) * v;
-  }
-  if (ss < 1e-6 * out->size()) return false;
+  const float mean = static_cast<float>(sum) / count;
+  const double ss = static_cast<double>(sum2) - static_cast<double>(sum) * sum / count;
+  if (ss < 1e-6 * count) return false;
   const float inv = static_cast<float>(1.0 / std::sqrt(ss));
-  for (float& v : *out) v *= inv;
+  for (int k = 0; k < count; ++k) out[k] = (out[k] - mean) * inv;
   return true;
 }
 
@@ -79,7 +79,8 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
   const int samples = std::max(2, static_cast<int>(std::ceil(cam1.fx() * baseline * rho_search * scale)) + 1);
   std::vector<cv::Point2f> guess(n);
   std::vector<unsigned char> have(n, 0);
-  std::vector<float> a, b;
+  const int patch_len = (2 * p.search_half_patch + 1) * (2 * p.search_half_patch + 1);
+  std::vector<float> a(static_cast<std::size_t>(patch_len)), b(static_cast<std::size_t>(patch_len));
   for (std::size_t i = 0; i < n; ++i) {
     if (prior && std::isfinite((*prior)[i].x) && std::isfinite((*prior)[i].y)) {
       guess[i] = (*prior)[i];
@@ -87,7 +88,7 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
       continue;
     }
     ++st.searched;
-    if (!patch(img0, cvRound(px0[i].x * scale), cvRound(px0[i].y * scale), p.search_half_patch, &a)) {
+    if (!patch(img0, cvRound(px0[i].x * scale), cvRound(px0[i].y * scale), p.search_half_patch, a.data())) {
       ++st.search_failed;
       continue;
     }
@@ -99,7 +100,7 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
       if (q.z() <= 1e-6) continue;
       const Vec2 px1 = cam1.distort(Vec2(q.x() / q.z(), q.y() / q.z()));
       if (!cam1.inImage(px1)) continue;
-      if (!patch(img1, cvRound(px1.x() * scale), cvRound(px1.y() * scale), p.search_half_patch, &b)) continue;
+      if (!patch(img1, cvRound(px1.x() * scale), cvRound(px1.y() * scale), p.search_half_patch, b.data())) continue;
       double zncc = 0.0;
       for (std::size_t j = 0; j < a.size(); ++j) zncc += static_cast<double>(a[j]) * b[j];
       if (zncc > best) {

@@ -124,6 +124,7 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
   }
 
   std::swap(pyr_prev_, pyr_cur_);
+  ++frame_index_;
   last_t_ = t;
   has_last_ = true;
   R_pred_.reset();
@@ -265,6 +266,7 @@ void PointTracker::replenish(const cv::Mat& image) {
     tr.length = 1;
     tr.has_right = false;
     tr.right_prior = false;
+    tr.stereo_retry_frame = 0;
     tr.px1 = cv::Point2f(0.f, 0.f);
     tr.uv1 = Vec2::Zero();
     tracks_.push_back(tr);
@@ -273,16 +275,20 @@ void PointTracker::replenish(const cv::Mat& image) {
 }
 
 void PointTracker::matchStereo() {
-  const std::size_t n = tracks_.size();
-  stats_.stereo_attempted = static_cast<int>(n);
-  std::vector<cv::Point2f> px0(n), prior(n);
-  std::vector<Vec2> uv0(n);
+  std::vector<std::size_t> idx;
+  std::vector<cv::Point2f> px0, prior;
+  std::vector<Vec2> uv0;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  for (std::size_t i = 0; i < n; ++i) {
-    px0[i] = tracks_[i].px;
-    uv0[i] = tracks_[i].uv;
-    prior[i] = tracks_[i].right_prior ? tracks_[i].px1 : cv::Point2f(nan, nan);
+  for (std::size_t i = 0; i < tracks_.size(); ++i) {
+    Track& tr = tracks_[i];
+    tr.has_right = false;
+    if (!tr.right_prior && frame_index_ < tr.stereo_retry_frame) continue;
+    idx.push_back(i);
+    px0.push_back(tr.px);
+    uv0.push_back(tr.uv);
+    prior.push_back(tr.right_prior ? tr.px1 : cv::Point2f(nan, nan));
   }
+  stats_.stereo_attempted = static_cast<int>(idx.size());
   StereoPointParams sp;
   sp.klt_window_px = opt_.klt_window_px;
   sp.klt_levels = opt_.klt_pyramid_levels;
@@ -299,13 +305,15 @@ void PointTracker::matchStereo() {
   StereoPointStats ss;
   const std::vector<StereoPointResult> res =
       matchStereoPoints(pyr_cur_, pyr_right_, cam0_, *cam1_, T_C1_C0_, px0, uv0, &prior, sp, &ss);
-  for (std::size_t i = 0; i < n; ++i) {
-    Track& tr = tracks_[i];
-    tr.has_right = res[i].ok;
+  for (std::size_t k = 0; k < idx.size(); ++k) {
+    Track& tr = tracks_[idx[k]];
+    tr.has_right = res[k].ok;
     tr.right_prior = false;
-    if (res[i].ok) {
-      tr.px1 = res[i].px1;
-      tr.uv1 = res[i].uv1;
+    if (res[k].ok) {
+      tr.px1 = res[k].px1;
+      tr.uv1 = res[k].uv1;
+    } else {
+      tr.stereo_retry_frame = frame_index_ + opt_.stereo_retry_interval;
     }
   }
   stats_.stereo_matched = ss.matched;

@@ -54,6 +54,8 @@ struct PointTrackerOptions {
   double stereo_min_depth_m = 0.1;       // closer stereo points are rejected, metres
   double stereo_search_min_depth_m = 0.3;  // the epipolar search for new matches spans this depth to infinity, metres
   double stereo_search_min_zncc = 0.6;   // the search's best patch correlation must reach this
+  int stereo_retry_interval = 3;         // a track whose stereo match failed is tried again after this many frames
+                                         // (occluded / out-of-view points fail every frame: this bounds their cost)
   int stereo_search_level = 1;           // pyramid level of the epipolar search (0 = full resolution)
   bool stereo_gain_compensation = true;  // match the right image's mean and contrast to the left's before stereo KLT
   // Image preprocessing
@@ -93,6 +95,7 @@ struct PointTrackerOptions {
       0.05, 100.0);
     v("stereo_search_min_zncc", stereo_search_min_zncc, "minimum patch correlation of the epipolar search", -1.0, 1.0);
     v("stereo_search_level", stereo_search_level, "pyramid level of the epipolar search", 0, 8);
+    v("stereo_retry_interval", stereo_retry_interval, "frames before a failed stereo match is tried again", 1, 1000);
     v("stereo_gain_compensation", stereo_gain_compensation, "match the right image's mean and contrast to the left's");
     v("clahe", clahe, "CLAHE before tracking");
     v("clahe_clip_limit", clahe_clip_limit, "CLAHE clip limit", 0.1, 100.0);
@@ -107,7 +110,7 @@ struct PointTrackerStats {
   int ransac_rejected = 0; // removed by the two-view RANSAC
   int crowded = 0;         // removed because a longer track lies within min_distance_px
   int detected = 0;        // new corners
-  int stereo_attempted = 0;
+  int stereo_attempted = 0;      // tracks tried in cam1 this frame (the others failed recently, see stereo_retry_interval)
   int stereo_matched = 0;
   int stereo_search_failed = 0;   // no epipolar-search candidate reached stereo_search_min_zncc
   int stereo_klt_failed = 0;      // KLT lost, right -> left check failed, or outside cam1
@@ -154,6 +157,7 @@ class PointTracker {
     cv::Point2f px1;      // distorted pixel in cam1 (valid if has_right)
     Vec2 uv1;
     bool right_prior;     // px1 holds last frame's match moved by this frame's flow (a stereo prior)
+    std::int64_t stereo_retry_frame;  // after a failed stereo attempt: the frame index of the next attempt
   };
 
   void trackTemporal(double dt);
@@ -169,6 +173,7 @@ class PointTracker {
 
   std::vector<Track> tracks_;     // sorted by id
   std::int64_t next_id_ = 0;
+  std::int64_t frame_index_ = 0;  // track() calls so far
   Timestamp last_t_ = 0;
   bool has_last_ = false;
   std::vector<cv::Mat> pyr_prev_, pyr_cur_, pyr_right_;
