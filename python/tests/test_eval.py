@@ -324,3 +324,14 @@ def test_plots_are_written_and_deterministic(tmp_path):
     plots.plot_top_view(a, tmp_path / "plain.png", color_by_error=False)
     assert (tmp_path / "plain.png").stat().st_size > 10_000
     assert [x.name for x in plots.plot_ape(a, tmp_path / "three")] == ["top_view.png", "ape_over_time.png", "xyz.png"]
+
+
+def test_degenerate_alignment_is_an_input_error():
+    """On a straight line the rotation about the line is unobservable: a clear error, not a silent result."""
+    t = np.arange(20, dtype=np.int64) * 100_000_000
+    p = np.outer(np.arange(20) * 0.1, [1.0, 0.0, 0.0])
+    q = np.tile([1.0, 0, 0, 0], (20, 1))
+    line = ev.trajectory_from_arrays(t, p, q)
+    with pytest.raises(ev.InputError, match="se3 alignment failed"):
+        ev.ape(line, line, align="se3")
+    assert ev.ape(line, line, align="none").rmse == 0.0
