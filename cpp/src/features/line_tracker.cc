@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <ctime>
+#include <numbers>
 #include <numeric>
 #include <string>
 
@@ -97,24 +99,39 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
 
   // Temporal matching against the lines delivered last frame.
   t0 = Clock::now();
-  std::vector<LineSegment> prev_segs(tracks_.size());
-  std::vector<LbdDescriptor> prev_desc(tracks_.size());
-  for (std::size_t k = 0; k < tracks_.size(); ++k) {
-    prev_segs[k] = tracks_[k].px;
-    prev_desc[k] = tracks_[k].desc;
+  // Candidates: the lines delivered last frame, then the recently lost ones (missed for <= max_missed frames).
+  std::vector<const Track*> prev;
+  prev.reserve(tracks_.size() + lost_.size());
+  for (const Track& tr : tracks_) prev.push_back(&tr);
+  for (const Track& tr : lost_) prev.push_back(&tr);
+  std::vector<LineSegment> prev_segs(prev.size());
+  std::vector<LbdDescriptor> prev_desc(prev.size());
+  for (std::size_t k = 0; k < prev.size(); ++k) {
+    prev_segs[k] = prev[k]->px;
+    prev_desc[k] = prev[k]->desc;
   }
   std::vector<int> match_of_cur;
   const Vec2 centre(0.5 * (left.cols - 1), 0.5 * (left.rows - 1));
   tm.tracked = matchTemporal(options_.temporal, prev_segs, prev_desc, segs_l_, desc_l_, centre, &match_of_cur);
   std::vector<Track> next;
   next.reserve(options_.max_lines);
-  std::vector<char> used(segs_l_.size(), 0);
+  std::vector<char> used(segs_l_.size(), 0), prev_matched(prev.size(), 0);
   for (std::size_t i = 0; i < segs_l_.size(); ++i) {
     if (match_of_cur[i] < 0) continue;
-    const Track& old = tracks_[match_of_cur[i]];
-    next.push_back(Track{old.id, segs_l_[i], desc_l_[i], old.length + 1});
+    const Track& old = *prev[match_of_cur[i]];
+    next.push_back(Track{old.id, segs_l_[i], desc_l_[i], old.length + 1, 0});
     used[i] = 1;
+    prev_matched[match_of_cur[i]] = 1;
   }
+  // Unmatched tracks wait up to max_missed frames to be found again (detections flicker).
+  std::vector<Track> lost;
+  for (std::size_t k = 0; k < prev.size(); ++k) {
+    if (prev_matched[k] || prev[k]->missed + 1 > options_.max_missed) continue;
+    Track t = *prev[k];
+    ++t.missed;
+    lost.push_back(t);
+  }
+  lost_.swap(lost);
   // Keep the longest-lived tracks if more matched than max_lines (only when max_lines shrank).
   if (static_cast<int>(next.size()) > options_.max_lines) {
     std::stable_sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.length > b.length; });
@@ -135,7 +152,8 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     const int c = cellOf(segs_l_[i]);
     if (cell_new[c] >= options_.max_new_per_cell) continue;
     ++cell_new[c];
-    next.push_back(Track{next_id_++, segs_l_[i], desc_l_[i], 1});
+    if (segs_l_[i].length() < options_.min_new_length_px) continue;
+    next.push_back(Track{next_id_++, segs_l_[i], desc_l_[i], 1, 0});
     ++tm.new_lines;
   }
   std::sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.id < b.id; });
@@ -201,6 +219,8 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     selectMutualBest(static_cast<int>(left_uv.size()), static_cast<int>(right_uv.size()), cands,
                      options_.stereo.max_hamming, options_.stereo.ratio, &match_of_left);
     double refine_ms = 0.0;
+    const Mat3 E = skew(T_C1_C0_.p) * T_C1_C0_.R();
+    const double cos_stereo = std::cos(options_.stereo.max_angle_deg * std::numbers::pi / 180.0);
     for (std::size_t k = 0; k < match_of_left.size(); ++k) {
       const int m = match_of_left[k];
       if (m < 0) continue;
@@ -208,8 +228,12 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
       LineSegment px = segs_r_[right_index[m]];
       refine(right, &px);
       LineSegment uv;
-      const bool ok = undistortSegment(*cam1_, px, &uv);
+      bool ok = undistortSegment(*cam1_, px, &uv);
       refine_ms += msSince(tr);
+      // The refined segment must still pass the direction and epipolar tests.
+      double overlap = 0.0;
+      ok = ok && uv.direction().dot(left_uv[k].direction()) >= cos_stereo &&
+           stereoGeometryOk(options_.stereo, E, T_C1_C0_, left_uv[k], uv, &overlap);
       if (!ok) continue;
       LineObservation& ob = out[out_of_left[k]];
       ob.has_right = true;

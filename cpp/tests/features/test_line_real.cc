@@ -96,7 +96,7 @@ TEST(LineTrackerReal, EurocMicroTracksLines) {
   EXPECT_GE(median(per_frame), 50);
   EXPECT_GE(median(stereo), 25);
   EXPECT_GE(median(tracked), 40);
-  EXPECT_GE(median(lengths), 5);
+  EXPECT_GE(median(lengths), 10);
   EXPECT_GE(median(age), 20);
 }
 

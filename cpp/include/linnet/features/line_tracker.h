@@ -29,6 +29,8 @@ struct LineTrackerOptions {
   int grid_cols = 4;           // replenishment grid (cells of the image) for spatial spread
   int grid_rows = 3;
   int max_new_per_cell = 4;    // new lines started per grid cell and frame (by midpoint)
+  double min_new_length_px = 40.0;  // shortest segment that starts a new track, pixels
+  int max_missed = 2;          // frames a lost track is kept for re-detection (same id), 0 = none
   bool match_stereo = true;    // false: ignore the right image
 
   template <class V>
@@ -42,6 +44,8 @@ struct LineTrackerOptions {
     v("grid_cols", grid_cols, "replenishment grid columns", 1, 64);
     v("grid_rows", grid_rows, "replenishment grid rows", 1, 64);
     v("max_new_per_cell", max_new_per_cell, "new lines per grid cell and frame", 1, 10000);
+    v("min_new_length_px", min_new_length_px, "shortest segment starting a track, pixels", 0.0, 10000.0);
+    v("max_missed", max_missed, "frames a lost track may be re-detected", 0, 100);
     v("match_stereo", match_stereo, "match lines in the right image");
   }
 };
@@ -66,7 +70,8 @@ class LineTracker {
     std::int64_t id = -1;
     LineSegment px;        // left pixel endpoints
     LbdDescriptor desc{};  // left descriptor
-    int length = 1;        // consecutive frames tracked
+    int length = 1;        // frames in which this id was delivered (gaps of <= max_missed frames allowed)
+    int missed = 0;        // frames since last seen (0 for delivered tracks)
   };
   const std::vector<Track>& tracks() const { return tracks_; }
 
@@ -84,6 +89,7 @@ class LineTracker {
   Pose T_C1_C0_;
   LineDetector detector_;
   std::vector<Track> tracks_;
+  std::vector<Track> lost_;  // recently lost tracks (missed 1..max_missed frames)
   std::int64_t next_id_ = 0;
   Timestamp last_t_ = 0;
   bool has_last_ = false;
