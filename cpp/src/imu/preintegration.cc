@@ -4,13 +4,19 @@
 #include <string>
 
 #include "linnet/core/error.h"
+#include "linnet/core/options.h"
 #include "linnet/core/pose.h"
 
 namespace linnet {
 
 Preintegration::Preintegration(const ImuNoise& noise, const Vec3& b_a, const Vec3& b_g,
                                const PreintegrationOptions& options)
-    : noise_(noise), options_(options), b_a_(b_a), b_g_(b_g) {}
+    : noise_(noise), options_(options), b_a_(b_a), b_g_(b_g) {
+  validateOptions(noise_, "imu");
+  validateOptions(options_, "preintegration");
+  if (!b_a_.allFinite() || !b_g_.allFinite())
+    throw UsageError("Preintegration: non-finite linearisation bias");
+}
 
 Preintegration::Preintegration(const std::vector<ImuSample>& samples, const ImuNoise& noise, const Vec3& b_a,
                                const Vec3& b_g, const PreintegrationOptions& options)

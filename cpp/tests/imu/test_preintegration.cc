@@ -263,5 +263,19 @@ TEST(Preintegration, PushRejectsTimeGoingBackwardsAndIgnoresDuplicates) {
   }
 }
 
+TEST(Preintegration, OutOfRangeOptionsAreConfigErrorsNamingTheKey) {
+  ImuNoise noise;
+  noise.acc_noise_density = -1.0;
+  try {
+    Preintegration pre(noise, Vec3::Zero(), Vec3::Zero());
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("imu.acc_noise_density"), std::string::npos) << e.what();
+  }
+  PreintegrationOptions opt;
+  opt.max_gyr_bias_change = -0.1;
+  EXPECT_THROW(Preintegration(ImuNoise(), Vec3::Zero(), Vec3::Zero(), opt), ConfigError);
+}
+
 }  // namespace
 }  // namespace linnet

@@ -58,6 +58,8 @@ class Preintegration {
   static constexpr int kP = 0, kR = 3, kV = 6, kBa = 9, kBg = 12;
 
   /// Empty preintegration linearised at biases (b_a, b_g). Push the sample at t_i first (see ImuBuffer).
+  /// Throws ConfigError naming the key ("imu.<field>" / "preintegration.<field>") if an option is out of
+  /// range.
   Preintegration(const ImuNoise& noise, const Vec3& b_a, const Vec3& b_g,
                  const PreintegrationOptions& options = PreintegrationOptions());
   /// Convenience: integrates `samples` (the first one at t_i, the last one at t_j).
