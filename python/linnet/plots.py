@@ -58,6 +58,19 @@ def _seconds_from(t_ns: np.ndarray, t0_ns: int) -> np.ndarray:
     return (np.asarray(t_ns, dtype=np.int64) - t0_ns).astype(np.float64) * 1e-9
 
 
+def _break_gaps(t: np.ndarray, y: np.ndarray, factor: float = 5.0):
+    """Insert NaN rows where the time step exceeds ``factor`` x the median step, so lines do not bridge gaps."""
+    if t.shape[0] < 3:
+        return t, y
+    dt = np.diff(t)
+    gaps = np.flatnonzero(dt > factor * np.median(dt))
+    if gaps.size == 0:
+        return t, y
+    t_out = np.insert(t, gaps + 1, np.nan)
+    y_out = np.insert(np.asarray(y, dtype=np.float64), gaps + 1, np.nan, axis=0)
+    return t_out, y_out
+
+
 def plot_top_view(
     result: ErrorResult,
     path,
@@ -111,7 +124,8 @@ def plot_error_over_time(result: ErrorResult, path, options: Optional[PlotOption
     fig = _figure(options, options.height_in * 0.7)
     ax = fig.add_subplot(1, 1, 1)
     t = _seconds_from(result.t_ns, int(result.estimate.t_ns[0]))
-    ax.plot(t, result.errors, "-", color=options.est_color, lw=1.0, label=result.metric.upper())
+    ax.plot(*_break_gaps(t, result.errors), ".-", ms=1.5, color=options.est_color, lw=1.0,
+            label=result.metric.upper())
     ax.axhline(result.rmse, color="tab:red", lw=1.0, label=f"rmse {result.rmse:.4f}")
     ax.axhline(result.mean, color="tab:orange", lw=1.0, ls="--", label=f"mean {result.mean:.4f}")
     ax.axhline(result.median, color="tab:green", lw=1.0, ls=":", label=f"median {result.median:.4f}")
@@ -136,11 +150,11 @@ def plot_xyz(
     axes = fig.subplots(3, 1, sharex=True)
     gt = gt_full if gt_full is not None else result.reference
     t0 = int(result.estimate.t_ns[0])
-    t_est = _seconds_from(result.estimate.t_ns, t0)
-    t_gt = _seconds_from(gt.t_ns, t0)
+    t_est, p_est = _break_gaps(_seconds_from(result.estimate.t_ns, t0), result.estimate.positions)
+    t_gt, p_gt = _break_gaps(_seconds_from(gt.t_ns, t0), gt.positions)
     for i, (ax, label) in enumerate(zip(axes, "xyz")):
-        ax.plot(t_gt, gt.positions[:, i], "--", color=options.gt_color, lw=1.2, label="ground truth")
-        ax.plot(t_est, result.estimate.positions[:, i], "-", color=options.est_color, lw=1.0, label="estimate")
+        ax.plot(t_gt, p_gt[:, i], "--", color=options.gt_color, lw=1.2, label="ground truth")
+        ax.plot(t_est, p_est[:, i], "-", color=options.est_color, lw=1.0, label="estimate")
         ax.set_ylabel(f"{label} [m]")
         ax.grid(True, lw=0.4, alpha=0.6)
     axes[0].legend(loc="best", fontsize="small")

@@ -335,3 +335,12 @@ def test_degenerate_alignment_is_an_input_error():
     with pytest.raises(ev.InputError, match="se3 alignment failed"):
         ev.ape(line, line, align="se3")
     assert ev.ape(line, line, align="none").rmse == 0.0
+
+
+def test_plot_lines_break_at_time_gaps():
+    t = np.array([0.0, 0.1, 0.2, 5.0, 5.1, 5.2])
+    t2, y2 = plots._break_gaps(t, t * 2)
+    assert np.isnan(t2[3]) and np.isnan(y2[3]) and t2.shape == (7,)
+    assert np.array_equal(t2[[0, 1, 2, 4, 5, 6]], t)
+    t3, _ = plots._break_gaps(t[:3], t[:3])
+    assert np.array_equal(t3, t[:3])
