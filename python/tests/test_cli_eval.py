@@ -61,6 +61,13 @@ def test_crosscheck_through_the_cli(shared_data, tmp_path):
     assert report["ape"]["align"] == "se3" and report["ape"]["pose_relation"] == "trans_part"
     assert report["rpe"]["pairs"] > 0 and report["rpe"]["delta"] == 1.0
     assert report["estimate_poses"] == 773
+    assert any("identity orientations" in n for n in report["notes"])  # a position-only (Leica) ground truth
+    result = CliRunner().invoke(cli, ["eval", str(folder / "vins_tum.txt"), str(folder / "ground_truth.tum"),
+                                      "--t-max-diff", "0.1", "--rpe-relation", "point_distance", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    assert report["notes"] == [] and report["rpe"]["pose_relation"] == "point_distance"
+    assert 0.0 < report["rpe"]["rmse"] < 0.2
 
 
 def test_json_and_plots(small_pair, tmp_path):

@@ -44,6 +44,21 @@ def _report(est_path, gt_path, est, gt, ape_res, rpe_res, rpe_reason) -> dict:
     }
 
 
+def _orientation_notes(gt, ape_relation: str, rpe_relation: str) -> list:
+    """Warn when the ground truth has no orientation (all identity, e.g. a Leica prism) but a relation uses it."""
+    import numpy as np
+
+    if not np.allclose(np.abs(gt.quaternions_wxyz[:, 0]), 1.0, atol=1e-12):
+        return []
+    notes = []
+    if ape_relation not in ("trans_part", "point_distance"):
+        notes.append(f"the ground truth has identity orientations only: APE {ape_relation} is not meaningful")
+    if rpe_relation != "point_distance":
+        notes.append(f"the ground truth has identity orientations only: RPE {rpe_relation} compares relative motions "
+                     "in body frames it does not know; use --rpe-relation point_distance")
+    return notes
+
+
 def _print_table(report: dict, ape_res, rpe_res, rpe_reason) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -65,7 +80,7 @@ def _print_table(report: dict, ape_res, rpe_res, rpe_reason) -> None:
     console.print(table)
     a = ape_res
     relations = f"APE {a.pose_relation}" + (f", RPE {rpe_res.pose_relation}" if rpe_res is not None else "")
-    console.print(f"{relations}; alignment {a.align} (scale {a.scale:.6f}); t_max_diff {a.t_max_diff_s:g} s")
+    console.print(f"{relations}; align {a.align} (scale {a.scale:.6f}); t_max_diff {a.t_max_diff_s:g} s")
     console.print(f"path length: estimate {report['estimate_path_length_m']:.3f} m, "
                   f"ground truth {report['ground_truth_path_length_m']:.3f} m")
     if rpe_res is None:
@@ -103,7 +118,10 @@ def eval_command(est, gt, align, t_max_diff, pose_relation, rpe_delta, rpe_relat
         raise EvalInputError(str(e)) from None
     rpe_res, rpe_reason = _rpe_or_reason(est_traj, gt_traj, rpe_delta, align, t_max_diff, rpe_relation)
     report = _report(est, gt, est_traj, gt_traj, ape_res, rpe_res, rpe_reason)
+    report["notes"] = _orientation_notes(gt_traj, pose_relation, rpe_relation)
     _print_table(report, ape_res, rpe_res, rpe_reason)
+    for note in report["notes"]:
+        click.echo(f"note: {note}")
     if plot_dir is not None:
         from linnet import plots
 
