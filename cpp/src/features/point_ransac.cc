@@ -23,9 +23,37 @@ std::vector<unsigned char> fundamentalInliers(const std::vector<Vec2>& uv_prev, 
     b[i] = cv::Point2d(p.focal_px * uv_cur[i].x(), p.focal_px * uv_cur[i].y());
   }
   std::vector<unsigned char> mask;
-  const cv::Mat F =
-      cv::findFundamentalMat(a, b, cv::FM_RANSAC, p.threshold_px, p.confidence, p.max_iterations, mask);
+  cv::Mat F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, p.threshold_px, p.confidence, p.max_iterations, mask);
   if (F.empty() || mask.size() != n) return inl;
+  // A minimal-sample F fits the noise of its 8 points: refit on all inliers (normalised 8-point least squares) and
+  // re-classify by the Sampson distance, twice.
+  for (int round = 0; round < 2; ++round) {
+    std::vector<cv::Point2d> ia, ib;
+    for (std::size_t i = 0; i < n; ++i)
+      if (mask[i]) {
+        ia.push_back(a[i]);
+        ib.push_back(b[i]);
+      }
+    if (ia.size() < 8) break;
+    const cv::Mat F8 = cv::findFundamentalMat(ia, ib, cv::FM_8POINT);
+    if (F8.rows != 3 || F8.cols != 3) break;
+    Mat3 Fe;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) Fe(r, c) = F8.at<double>(r, c);
+    std::vector<unsigned char> next(n, 0);
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 x1(a[i].x, a[i].y, 1.0), x2(b[i].x, b[i].y, 1.0);
+      const Vec3 l2 = Fe * x1, l1 = Fe.transpose() * x2;
+      const double e = x2.dot(l2);
+      const double den = l2.head<2>().squaredNorm() + l1.head<2>().squaredNorm();
+      const bool ok = den > 0.0 && e * e / den < p.threshold_px * p.threshold_px;
+      next[i] = ok ? 1 : 0;
+      count += ok ? 1 : 0;
+    }
+    if (count < ia.size() / 2) break;  // the refit went astray: keep the RANSAC answer
+    mask = std::move(next);
+  }
   return mask;
 }
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
 #include "linnet/core/error.h"
@@ -46,6 +47,21 @@ bool patch(const cv::Mat& img, int cx, int cy, int h, float* out) {
   const float inv = static_cast<float>(1.0 / std::sqrt(ss));
   for (int k = 0; k < count; ++k) out[k] = (out[k] - mean) * inv;
   return true;
+}
+
+// ZNCC of (2h+1)^2 patches around sub-pixel centres (bilinear sampling); -1 when either patch is flat.
+double subpixelZncc(const cv::Mat& img0, const cv::Point2f& c0, const cv::Mat& img1, const cv::Point2f& c1, int h) {
+  const cv::Size size(2 * h + 1, 2 * h + 1);
+  cv::Mat a, b;
+  cv::getRectSubPix(img0, size, c0, a, CV_32F);
+  cv::getRectSubPix(img1, size, c1, b, CV_32F);
+  cv::Scalar ma, sa, mb, sb;
+  cv::meanStdDev(a, ma, sa);
+  cv::meanStdDev(b, mb, sb);
+  if (sa[0] < 1e-3 || sb[0] < 1e-3) return -1.0;
+  a -= ma[0];
+  b -= mb[0];
+  return a.dot(b) / (sa[0] * sb[0] * static_cast<double>(a.total()));
 }
 
 }  // namespace
@@ -180,6 +196,13 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
       const double rho = ct2 > 1e-18 ? -c_a.dot(c_t) / ct2 : 0.0;
       if (rho < -rho_tol || rho > rho_max) {
         ++st.depth_rejected;
+        continue;
+      }
+      // Last check at full resolution: KLT can settle on a look-alike further along the epipolar line.
+      if (p.verify_min_zncc > -1.0 &&
+          subpixelZncc(levelImage(pyr0, 0), left[k], levelImage(pyr1, 0), right[k], p.verify_half_patch) <
+              p.verify_min_zncc) {
+        ++st.verify_rejected;
         continue;
       }
       res[i].ok = true;

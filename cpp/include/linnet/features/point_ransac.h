@@ -16,8 +16,8 @@ struct TwoViewRansacParams {
   std::uint32_t seed = 0x5eed;    // fixed: deterministic
 };
 
-/// Fundamental-matrix RANSAC (OpenCV's 8-point RANSAC on focal-scaled normalised coordinates, as VINS-Mono does).
-/// Returns 1 per inlier. With fewer than 8 points, or when RANSAC finds no model, every point is kept.
+/// Fundamental-matrix RANSAC (OpenCV's 8-point RANSAC on focal-scaled normalised coordinates, as VINS-Mono does),
+/// then a least-squares refit on the inliers and re-classification by the Sampson distance. Returns 1 per inlier. With fewer than 8 points, or when RANSAC finds no model, every point is kept.
 std::vector<unsigned char> fundamentalInliers(const std::vector<Vec2>& uv_prev, const std::vector<Vec2>& uv_cur,
                                               const TwoViewRansacParams& params);
 

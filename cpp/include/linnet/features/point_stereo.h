@@ -24,6 +24,8 @@ struct StereoPointParams {
   double search_min_depth_m = 0.3;    // the search covers depths from here to infinity, metres
   double search_min_zncc = 0.6;       // best candidate's ZNCC must reach this
   double fb_threshold_px = 1.0;       // right -> left round trip error, pixels
+  double verify_min_zncc = 0.7;       // full-resolution ZNCC of the final match must reach this (-1: no check)
+  int verify_half_patch = 4;          // its patch half size, pixels
   double epipolar_threshold_px = 1.5; // distance of the right point to its epipolar line, pixels of cam1
   double min_depth_m = 0.1;           // closer points are rejected, metres
   double border_px = 3.0;             // right points closer to the border are rejected, pixels
@@ -42,6 +44,7 @@ struct StereoPointStats {
   int klt_failed = 0;       // KLT lost, round trip failed, or outside cam1
   int epipolar_rejected = 0;
   int depth_rejected = 0;
+  int verify_rejected = 0;  // full-resolution ZNCC below verify_min_zncc
   int matched = 0;
 };
 

@@ -1,0 +1,77 @@
+// Corner detection: quota, minimum distance, mask, spread over the grid, determinism, degenerate images.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "linnet/core/error.h"
+#include "linnet/features/point_detection.h"
+
+namespace linnet {
+namespace {
+
+cv::Mat texture(unsigned seed) {
+  cv::Mat a(480, 640, CV_32F);
+  cv::RNG rng(seed);
+  rng.fill(a, cv::RNG::UNIFORM, 0.0, 255.0);
+  cv::GaussianBlur(a, a, cv::Size(0, 0), 2.0);
+  cv::normalize(a, a, 0, 255, cv::NORM_MINMAX);
+  cv::Mat img;
+  a.convertTo(img, CV_8U);
+  return img;
+}
+
+double minPairDistance(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b, bool same) {
+  double best = 1e9;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (std::size_t j = same ? i + 1 : 0; j < b.size(); ++j) best = std::min(best, double(cv::norm(a[i] - b[j])));
+  return best;
+}
+
+TEST(PointDetection, QuotaDistanceMaskAndSpread) {
+  const cv::Mat img = texture(1);
+  for (const char* det : {"fast", "shi_tomasi"}) {
+    PointDetectorParams p;
+    p.detector = det;
+    p.min_distance_px = 25.0;
+    const std::vector<cv::Point2f> existing{{100.f, 100.f}, {300.f, 200.f}, {500.f, 400.f}};
+    cv::Mat mask = detectionMask(img.size(), existing, p.min_distance_px, p.border_px, nullptr);
+    const auto pts = detectCorners(img, &mask, 120, p);
+    EXPECT_EQ(pts.size(), 120u) << det;
+    EXPECT_GE(minPairDistance(pts, pts, true), p.min_distance_px - 1.0) << det;
+    EXPECT_GE(minPairDistance(pts, existing, false), p.min_distance_px - 1.0) << det;
+    std::vector<int> cells(static_cast<std::size_t>(p.grid_cols * p.grid_rows), 0);
+    for (const auto& q : pts) {
+      EXPECT_GE(q.x, p.border_px);
+      EXPECT_GE(q.y, p.border_px);
+      EXPECT_LT(q.x, img.cols - p.border_px);
+      EXPECT_LT(q.y, img.rows - p.border_px);
+      ++cells[static_cast<std::size_t>(int(q.y / (480.0 / p.grid_rows)) * p.grid_cols + int(q.x / (640.0 / p.grid_cols)))];
+    }
+    EXPECT_GE(std::count_if(cells.begin(), cells.end(), [](int c) { return c > 0; }), 40) << det;  // of 48
+    cv::Mat mask2 = detectionMask(img.size(), existing, p.min_distance_px, p.border_px, nullptr);
+    EXPECT_EQ(pts, detectCorners(img, &mask2, 120, p)) << det;  // deterministic
+  }
+}
+
+TEST(PointDetection, CrowdedTracksAreFlagged) {
+  std::vector<unsigned char> keep;
+  const std::vector<cv::Point2f> pts{{100.f, 100.f}, {110.f, 100.f}, {200.f, 100.f}, {100.f, 125.f}};
+  detectionMask(cv::Size(640, 480), pts, 30.0, 5, &keep);
+  EXPECT_EQ(keep, (std::vector<unsigned char>{1, 0, 1, 0}));
+}
+
+TEST(PointDetection, FlatImagesGiveNothing) {
+  for (const int v : {0, 255, 77}) {
+    const cv::Mat img(480, 640, CV_8UC1, cv::Scalar(v));
+    cv::Mat mask = detectionMask(img.size(), {}, 30.0, 8, nullptr);
+    PointDetectorParams p;
+    EXPECT_TRUE(detectCorners(img, &mask, 150, p).empty());
+    p.detector = "shi_tomasi";
+    EXPECT_TRUE(detectCorners(img, &mask, 150, p).empty());
+  }
+  cv::Mat color(480, 640, CV_8UC3), mask(480, 640, CV_8UC1);
+  EXPECT_THROW(detectCorners(color, &mask, 10, PointDetectorParams()), UsageError);
+}
+
+}  // namespace
+}  // namespace linnet
