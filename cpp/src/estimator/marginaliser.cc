@@ -1,4 +1,5 @@
-// Schur-complement marginalisation into a square-root prior (see marginaliser.h for the method and references).
+// Schur-complement marginalisation into a square-root prior (see marginaliser.h for the method and
+// references).
 #include "linnet/estimator/marginaliser.h"
 
 #include <algorithm>
@@ -24,8 +25,8 @@ double effectiveThreshold(const Eigen::VectorXd& eigenvalues, const Marginaliser
   return std::max(o.eigenvalue_threshold, o.relative_eigenvalue_threshold * largest);
 }
 
-/// Symmetric pseudo-inverse through the eigen-decomposition; eigenvalues at or below the effective threshold are
-/// treated as zero. `deficiency` receives how many were.
+/// Symmetric pseudo-inverse through the eigen-decomposition; eigenvalues at or below the effective threshold
+/// are treated as zero. `deficiency` receives how many were.
 Eigen::MatrixXd symmetricPseudoInverse(const Eigen::MatrixXd& A, const MarginaliserOptions& options,
                                        int* deficiency) {
   const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
@@ -45,8 +46,9 @@ Eigen::MatrixXd symmetricPseudoInverse(const Eigen::MatrixXd& A, const Marginali
   return es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose();
 }
 
-/// Applies the loss function's correction to one residual block (residual r, tangent Jacobians per parameter block,
-/// empty for constant blocks), in place. Same algebra as Ceres' trust-region solver (Triggs et al. 2000).
+/// Applies the loss function's correction to one residual block (residual r, tangent Jacobians per parameter
+/// block, empty for constant blocks), in place. Same algebra as Ceres' trust-region solver (Triggs et al.
+/// 2000).
 void applyLoss(const ceres::LossFunction& loss, Eigen::VectorXd* r, std::vector<Eigen::MatrixXd>* J) {
   const double sq_norm = r->squaredNorm();
   double rho[3];
@@ -91,8 +93,8 @@ std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockK
   std::vector<BlockKey> first;
   std::set<BlockKey> chosen;
   for (BlockKey k : by_size) {
-    const bool free = std::none_of(chosen.begin(), chosen.end(),
-                                   [&](BlockKey c) { return coupled.count({k, c}) != 0; });
+    const bool free =
+        std::none_of(chosen.begin(), chosen.end(), [&](BlockKey c) { return coupled.count({k, c}) != 0; });
     if (free) {
       first.push_back(k);
       chosen.insert(k);
@@ -113,7 +115,8 @@ Marginaliser::Marginaliser(MarginaliserOptions options) : options_(options) {}
 
 void Marginaliser::addParameterBlock(BlockKey key, const double* values, int ambient_size,
                                      const ceres::Manifold* manifold) {
-  if (blocks_.count(key) != 0) throw UsageError("Marginaliser::addParameterBlock: " + keyName(key) + " added twice");
+  if (blocks_.count(key) != 0)
+    throw UsageError("Marginaliser::addParameterBlock: " + keyName(key) + " added twice");
   if (values == nullptr || ambient_size <= 0)
     throw UsageError("Marginaliser::addParameterBlock: " + keyName(key) + " has no values or size " +
                      std::to_string(ambient_size));
@@ -132,7 +135,8 @@ void Marginaliser::addParameterBlock(BlockKey key, const double* values, int amb
 
 void Marginaliser::setParameterBlockConstant(BlockKey key) {
   auto it = blocks_.find(key);
-  if (it == blocks_.end()) throw UsageError("Marginaliser::setParameterBlockConstant: unknown " + keyName(key));
+  if (it == blocks_.end())
+    throw UsageError("Marginaliser::setParameterBlockConstant: unknown " + keyName(key));
   it->second.constant = true;
 }
 
@@ -170,17 +174,18 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<const Residual*> used;
   std::set<BlockKey> kept_set;
   for (const Residual& res : residuals_) {
-    const bool touches = std::any_of(res.keys.begin(), res.keys.end(),
-                                     [&](BlockKey k) { return drop_set.count(k) != 0; });
+    const bool touches =
+        std::any_of(res.keys.begin(), res.keys.end(), [&](BlockKey k) { return drop_set.count(k) != 0; });
     if (!touches) continue;
     used.push_back(&res);
     for (BlockKey k : res.keys)
       if (drop_set.count(k) == 0 && !blocks_.at(k).constant) kept_set.insert(k);
   }
   if (used.empty()) return nullptr;
-  // Two-stage elimination: first a set of dropped blocks with no residual between any two of them (typically the
-  // inverse depths hosted by the dropped frame), whose H block is block-diagonal and cheap to invert; then the rest
-  // of the dropped blocks densely. In exact arithmetic this is the same Schur complement as one joint elimination.
+  // Two-stage elimination: first a set of dropped blocks with no residual between any two of them (typically
+  // the inverse depths hosted by the dropped frame), whose H block is block-diagonal and cheap to invert;
+  // then the rest of the dropped blocks densely. In exact arithmetic this is the same Schur complement as one
+  // joint elimination.
   dropped = orderForElimination(dropped, used, &stats_.decoupled_blocks);
   std::vector<BlockKey> kept(kept_set.begin(), kept_set.end());
   std::sort(kept.begin(), kept.end(),
@@ -266,7 +271,8 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     const int rest = total - m1;
     Eigen::MatrixXd X(rest, m1);  // H_RP H_PP^+
     Eigen::VectorXd y(m1);        // H_PP^+ g_P
-    for (int i = 0, o = 0; i < static_cast<int>(p_sizes.size()); o += p_sizes[static_cast<std::size_t>(i)], ++i) {
+    for (int i = 0, o = 0; i < static_cast<int>(p_sizes.size());
+         o += p_sizes[static_cast<std::size_t>(i)], ++i) {
       const int t = p_sizes[static_cast<std::size_t>(i)];
       int def = 0;
       const Eigen::MatrixXd inv = symmetricPseudoInverse(H.block(o, o, t, t), options_, &def);

@@ -19,13 +19,19 @@ Eigen::Matrix<double, 2, 3> projectionJacobian(const Vec3& p, double sqrt_info) 
 
 }  // namespace
 
-PointReprojectionFactor::PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost,
-                                                 const Pose& T_B_Ctarget, double sqrt_info)
-    : uv_host_(uv_host), uv_target_(uv_target), T_B_Ch_(T_B_Chost), T_B_Ct_(T_B_Ctarget), sqrt_info_(sqrt_info) {}
+PointReprojectionFactor::PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target,
+                                                 const Pose& T_B_Chost, const Pose& T_B_Ctarget,
+                                                 double sqrt_info)
+    : uv_host_(uv_host),
+      uv_target_(uv_target),
+      T_B_Ch_(T_B_Chost),
+      T_B_Ct_(T_B_Ctarget),
+      sqrt_info_(sqrt_info) {}
 
 bool PointReprojectionFactor::evaluateTangent(const Pose& T_W_Bi, const Pose& T_W_Bj, double inv_depth,
                                               Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose_i,
-                                              Eigen::Matrix<double, 2, 6>* J_pose_j, Vec2* J_inv_depth) const {
+                                              Eigen::Matrix<double, 2, 6>* J_pose_j,
+                                              Vec2* J_inv_depth) const {
   const Vec3 f(uv_host_.x(), uv_host_.y(), 1.0);
   const Vec3 p_Ch = f / inv_depth;
   const Vec3 p_Bi = T_B_Ch_ * p_Ch;
@@ -85,7 +91,8 @@ PointStereoFactor::PointStereoFactor(const Vec2& uv_left, const Vec2& uv_right, 
                                      const Pose& T_B_C1, double sqrt_info)
     : uv_left_(uv_left), uv_right_(uv_right), T_C1_C0_(T_B_C1.inverse() * T_B_C0), sqrt_info_(sqrt_info) {}
 
-bool PointStereoFactor::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+bool PointStereoFactor::Evaluate(double const* const* parameters, double* residuals,
+                                 double** jacobians) const {
   const double inv_depth = parameters[0][0];
   const Vec3 f(uv_left_.x(), uv_left_.y(), 1.0);
   const Vec3 p_C1 = T_C1_C0_ * (f / inv_depth);

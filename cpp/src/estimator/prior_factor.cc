@@ -36,7 +36,8 @@ bool tangentDifferenceJacobianNumeric(const ceres::Manifold& manifold, const dou
 }
 
 /// The same derivative for PoseManifold, analytically: Minus(y, x0) = (p_y - p0, Log(q0^-1 q_y)) and
-/// Plus(x, d) = (p + dp, q Exp(dtheta)), so it is blockdiag(I, Jr^-1(Log(q0^-1 q))) (right Jacobian of SO(3)).
+/// Plus(x, d) = (p + dp, q Exp(dtheta)), so it is blockdiag(I, Jr^-1(Log(q0^-1 q))) (right Jacobian of
+/// SO(3)).
 Eigen::MatrixXd tangentDifferenceJacobianPose(const double* x, const double* x0) {
   Eigen::MatrixXd T = Eigen::MatrixXd::Identity(kPoseTangentSize, kPoseTangentSize);
   const Vec3 phi = logSO3(poseRotation(x0).conjugate() * poseRotation(x));
@@ -88,7 +89,8 @@ bool PriorFactor::Evaluate(double const* const* parameters, double* residuals, d
     const ceres::Manifold* manifold = p.manifolds[k];
     Eigen::VectorXd dx(t);
     if (manifold == nullptr) {
-      dx = Eigen::Map<const Eigen::VectorXd>(parameters[k], a) - Eigen::Map<const Eigen::VectorXd>(p.x0[k].data(), a);
+      dx = Eigen::Map<const Eigen::VectorXd>(parameters[k], a) -
+           Eigen::Map<const Eigen::VectorXd>(p.x0[k].data(), a);
     } else if (!manifold->Minus(parameters[k], p.x0[k].data(), dx.data())) {
       return false;
     }

@@ -1,5 +1,5 @@
-// Point triangulation: DLT (Hartley & Zisserman, MVG 2nd ed., sec. 12.2), ray parallax, depth checks and a small
-// Gauss-Newton refinement in normalised image coordinates.
+// Point triangulation: DLT (Hartley & Zisserman, MVG 2nd ed., sec. 12.2), ray parallax, depth checks and a
+// small Gauss-Newton refinement in normalised image coordinates.
 #include "linnet/geometry/triangulation.h"
 
 #include <algorithm>
@@ -16,8 +16,10 @@ namespace {
 
 constexpr double kRadPerDeg = 3.14159265358979323846 / 180.0;
 
-/// Residual of one view (projection - observation) and its Jacobian w.r.t. p_W. Returns false if behind the camera.
-bool viewResidual(const Pose& T_W_C, const Vec2& uv, const Vec3& p_W, Vec2* r, Eigen::Matrix<double, 2, 3>* J) {
+/// Residual of one view (projection - observation) and its Jacobian w.r.t. p_W. Returns false if behind the
+/// camera.
+bool viewResidual(const Pose& T_W_C, const Vec2& uv, const Vec3& p_W, Vec2* r,
+                  Eigen::Matrix<double, 2, 3>* J) {
   const Mat3 R_C_W = T_W_C.R().transpose();
   const Vec3 p_C = R_C_W * (p_W - T_W_C.p);
   if (!(p_C.z() > 1e-9)) return false;
@@ -51,12 +53,18 @@ void requireSameSize(const std::vector<Pose>& T_W_C, const std::vector<Vec2>& uv
 
 const char* toString(TriangulationStatus s) {
   switch (s) {
-    case TriangulationStatus::kOk: return "ok";
-    case TriangulationStatus::kTooFewViews: return "too few views";
-    case TriangulationStatus::kDegenerate: return "degenerate";
-    case TriangulationStatus::kLowParallax: return "low parallax";
-    case TriangulationStatus::kBadDepth: return "bad depth";
-    case TriangulationStatus::kHighError: return "high reprojection error";
+    case TriangulationStatus::kOk:
+      return "ok";
+    case TriangulationStatus::kTooFewViews:
+      return "too few views";
+    case TriangulationStatus::kDegenerate:
+      return "degenerate";
+    case TriangulationStatus::kLowParallax:
+      return "low parallax";
+    case TriangulationStatus::kBadDepth:
+      return "bad depth";
+    case TriangulationStatus::kHighError:
+      return "high reprojection error";
   }
   return "unknown";
 }
@@ -169,10 +177,12 @@ TriangulationStatus triangulateChecked(const std::vector<Pose>& T_W_C, const std
                                        const TriangulationOptions& options, Vec3* p_W) {
   requireSameSize(T_W_C, uv, "triangulateChecked");
   if (T_W_C.size() < 2) return TriangulationStatus::kTooFewViews;
-  if (maxParallaxRad(T_W_C, uv) < options.min_parallax_deg * kRadPerDeg) return TriangulationStatus::kLowParallax;
+  if (maxParallaxRad(T_W_C, uv) < options.min_parallax_deg * kRadPerDeg)
+    return TriangulationStatus::kLowParallax;
   Vec3 p;
   if (!triangulateDlt(T_W_C, uv, &p)) return TriangulationStatus::kDegenerate;
-  if (!allDepthsPositive(T_W_C, p, options.min_depth_m, options.max_depth_m)) return TriangulationStatus::kBadDepth;
+  if (!allDepthsPositive(T_W_C, p, options.min_depth_m, options.max_depth_m))
+    return TriangulationStatus::kBadDepth;
   if (options.refine_iterations > 0) {
     refinePoint(T_W_C, uv, &p, options.refine_iterations);
     if (!allDepthsPositive(T_W_C, p, options.min_depth_m, options.max_depth_m))

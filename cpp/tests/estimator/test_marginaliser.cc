@@ -1,6 +1,6 @@
-// Marginaliser on linear-Gaussian problems, where the Schur complement is exact: the prior plus the remaining residuals
-// must reproduce the batch solution and marginal covariance of the full problem, also when a prior is itself
-// re-marginalised. Plus the robust-loss correction and the API's error handling.
+// Marginaliser on linear-Gaussian problems, where the Schur complement is exact: the prior plus the remaining
+// residuals must reproduce the batch solution and marginal covariance of the full problem, also when a prior
+// is itself re-marginalised. Plus the robust-loss correction and the API's error handling.
 #include "linnet/estimator/marginaliser.h"
 
 #include <map>
@@ -8,9 +8,9 @@
 #include <random>
 #include <vector>
 
-#include <Eigen/Dense>
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
@@ -57,7 +57,8 @@ struct LinearProblem {
   std::vector<Term> terms;
 
   LinearProblem(std::mt19937& rng, const std::map<BlockKey, int>& block_sizes,
-                const std::vector<std::vector<BlockKey>>& structure) : sizes(block_sizes) {
+                const std::vector<std::vector<BlockKey>>& structure)
+      : sizes(block_sizes) {
     std::normal_distribution<double> n(0.0, 1.0);
     for (auto [key, size] : sizes) {
       std::vector<double> v(size);
@@ -67,7 +68,8 @@ struct LinearProblem {
     for (const auto& keys : structure) {
       const int rows = 2 + static_cast<int>(keys.size());
       std::vector<Eigen::MatrixXd> A;
-      for (BlockKey k : keys) A.push_back(Eigen::MatrixXd::NullaryExpr(rows, sizes.at(k), [&] { return n(rng); }));
+      for (BlockKey k : keys)
+        A.push_back(Eigen::MatrixXd::NullaryExpr(rows, sizes.at(k), [&] { return n(rng); }));
       const Eigen::VectorXd z = Eigen::VectorXd::NullaryExpr(rows, [&] { return n(rng); });
       terms.push_back({std::make_shared<LinearResidual>(A, z), keys});
     }
@@ -87,7 +89,8 @@ void denseSolve(const std::vector<Term>& terms, const std::vector<BlockKey>& ord
   }
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(total, total);
   Eigen::VectorXd g = Eigen::VectorXd::Zero(total), x0(total);
-  for (BlockKey k : order) x0.segment(offset[k], sizes.at(k)) = Eigen::Map<const Eigen::VectorXd>(x_lin.at(k).data(), sizes.at(k));
+  for (BlockKey k : order)
+    x0.segment(offset[k], sizes.at(k)) = Eigen::Map<const Eigen::VectorXd>(x_lin.at(k).data(), sizes.at(k));
   for (const Term& t : terms) {
     const int nr = t.cost->num_residuals();
     Eigen::MatrixXd J = Eigen::MatrixXd::Zero(nr, total);
@@ -101,7 +104,8 @@ void denseSolve(const std::vector<Term>& terms, const std::vector<BlockKey>& ord
     }
     Eigen::VectorXd r(nr);
     ASSERT_TRUE(t.cost->Evaluate(params.data(), r.data(), jac_ptr.data()));
-    for (std::size_t i = 0; i < t.keys.size(); ++i) J.middleCols(offset.at(t.keys[i]), sizes.at(t.keys[i])) = jac[i];
+    for (std::size_t i = 0; i < t.keys.size(); ++i)
+      J.middleCols(offset.at(t.keys[i]), sizes.at(t.keys[i])) = jac[i];
     H += J.transpose() * J;
     g += J.transpose() * r;
   }
@@ -110,11 +114,12 @@ void denseSolve(const std::vector<Term>& terms, const std::vector<BlockKey>& ord
 }
 
 /// Registers the blocks a set of terms touches, adds the terms, marginalises `drop`.
-std::shared_ptr<const MarginalizationPrior> marginaliseTerms(const std::vector<Term>& terms,
-                                                             const std::map<BlockKey, std::vector<double>>& x_lin,
-                                                             const std::vector<BlockKey>& drop) {
+std::shared_ptr<const MarginalizationPrior> marginaliseTerms(
+    const std::vector<Term>& terms, const std::map<BlockKey, std::vector<double>>& x_lin,
+    const std::vector<BlockKey>& drop) {
   Marginaliser m;
-  for (const auto& [key, values] : x_lin) m.addParameterBlock(key, values.data(), static_cast<int>(values.size()), nullptr);
+  for (const auto& [key, values] : x_lin)
+    m.addParameterBlock(key, values.data(), static_cast<int>(values.size()), nullptr);
   for (const Term& t : terms) m.addResidual(t.cost, nullptr, t.keys);
   return m.marginalise(drop);
 }
@@ -133,7 +138,8 @@ TEST(Marginaliser, LinearGaussianMatchesBatchSolutionAndCovariance) {
   const std::vector<BlockKey> drop = {10, 11};
   auto prior = marginaliseTerms(lp.terms, lp.x_lin, drop);
   ASSERT_TRUE(prior);
-  EXPECT_EQ(prior->keys, (std::vector<BlockKey>{12, 13}));  // connected to a dropped block, registration order
+  EXPECT_EQ(prior->keys,
+            (std::vector<BlockKey>{12, 13}));  // connected to a dropped block, registration order
   EXPECT_EQ(prior->J.cols(), 3);
   EXPECT_EQ(prior->J.rows(), 3);  // full rank
 
@@ -150,13 +156,14 @@ TEST(Marginaliser, LinearGaussianMatchesBatchSolutionAndCovariance) {
   Eigen::MatrixXd cov_red;
   denseSolve(reduced, {12, 13, 14}, lp.x_lin, lp.sizes, &x_red, &cov_red);
 
-  EXPECT_LT((x_red - x_full.tail(5)).cwiseAbs().maxCoeff(), 1e-9) << x_red.transpose() << "\n" << x_full.tail(5).transpose();
+  EXPECT_LT((x_red - x_full.tail(5)).cwiseAbs().maxCoeff(), 1e-9) << x_red.transpose() << "\n"
+                                                                  << x_full.tail(5).transpose();
   EXPECT_LT((cov_red - cov_full.bottomRightCorner(5, 5)).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 TEST(Marginaliser, LandmarkHeavyDropMatchesBatch) {
-  // A dropped "frame" (6) hosting 30 dropped 1-D "inverse depths", each seen from two kept frames (6 each): the
-  // depths share no residual, so they go through the block-diagonal first stage.
+  // A dropped "frame" (6) hosting 30 dropped 1-D "inverse depths", each seen from two kept frames (6 each):
+  // the depths share no residual, so they go through the block-diagonal first stage.
   std::mt19937 rng(24);
   std::map<BlockKey, int> sizes = {{0, 6}, {1, 6}, {2, 6}};
   std::vector<std::vector<BlockKey>> structure = {{0}, {0, 1}, {1, 2}, {2}};
@@ -169,7 +176,8 @@ TEST(Marginaliser, LandmarkHeavyDropMatchesBatch) {
   }
   const LinearProblem lp(rng, sizes, structure);
   Marginaliser m;
-  for (const auto& [key, values] : lp.x_lin) m.addParameterBlock(key, values.data(), static_cast<int>(values.size()), nullptr);
+  for (const auto& [key, values] : lp.x_lin)
+    m.addParameterBlock(key, values.data(), static_cast<int>(values.size()), nullptr);
   std::vector<Term> rest;
   for (const Term& t : lp.terms) {
     if (touchesAny(t, drop)) {
@@ -246,10 +254,12 @@ TEST(Marginaliser, RankDeficientPriorKeepsOnlyObservableDirections) {
   A0 << 1.0;
   A1 << 1.0, 2.0;
   B0 << 3.0;
-  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{A0, A1}, Eigen::VectorXd::Constant(1, 0.3)),
+  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{A0, A1},
+                                                 Eigen::VectorXd::Constant(1, 0.3)),
                 nullptr, {0, 1});
-  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{B0}, Eigen::VectorXd::Constant(1, 1.0)),
-                nullptr, {0});
+  m.addResidual(
+      std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{B0}, Eigen::VectorXd::Constant(1, 1.0)),
+      nullptr, {0});
   auto prior = m.marginalise({0});
   ASSERT_TRUE(prior);
   EXPECT_EQ(prior->J.rows(), 1);
@@ -260,8 +270,9 @@ TEST(Marginaliser, RankDeficientPriorKeepsOnlyObservableDirections) {
 }
 
 TEST(Marginaliser, RelativeThresholdDropsRoundOffLevelDirections) {
-  // Kept block b (2-D): one direction with information ~1e8, one with 9e-8 (above the absolute 1e-8 threshold but
-  // 1e-15 of the largest: numerically meaningless). The relative threshold removes it; without it, it stays.
+  // Kept block b (2-D): one direction with information ~1e8, one with 9e-8 (above the absolute 1e-8 threshold
+  // but 1e-15 of the largest: numerically meaningless). The relative threshold removes it; without it, it
+  // stays.
   Eigen::MatrixXd Aa(2, 1), Ab(2, 2), one = Eigen::MatrixXd::Ones(1, 1);
   Aa << 0.0, 0.0;  // a is only structurally connected: H* is exactly H_bb
   Ab << 1e4, 0.0, 0.0, 3e-4;
@@ -272,18 +283,20 @@ TEST(Marginaliser, RelativeThresholdDropsRoundOffLevelDirections) {
     Marginaliser m(options);
     m.addParameterBlock(0, a, 1, nullptr);
     m.addParameterBlock(1, b, 2, nullptr);
-    m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{Aa, Ab}, Eigen::VectorXd::Ones(2)),
-                  nullptr, {0, 1});
-    m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{one}, Eigen::VectorXd::Zero(1)),
-                  nullptr, {0});
+    m.addResidual(
+        std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{Aa, Ab}, Eigen::VectorXd::Ones(2)),
+        nullptr, {0, 1});
+    m.addResidual(
+        std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{one}, Eigen::VectorXd::Zero(1)),
+        nullptr, {0});
     auto prior = m.marginalise({0});
     ASSERT_TRUE(prior);
     EXPECT_EQ(prior->J.rows(), relative > 0.0 ? 1 : 2) << "relative threshold " << relative;
   }
 }
 
-/// r = M b - z over blocks (a[1], b[2]) with no dependence on a, so that the prior on b is exactly the robustified
-/// Gauss-Newton system of this one residual.
+/// r = M b - z over blocks (a[1], b[2]) with no dependence on a, so that the prior on b is exactly the
+/// robustified Gauss-Newton system of this one residual.
 class DecoupledResidual : public ceres::SizedCostFunction<2, 1, 2> {
  public:
   DecoupledResidual(const Mat2& M, const Vec2& z) : M_(M), z_(z) {}
@@ -315,8 +328,8 @@ void robustSystem(ceres::LossFunction* loss, Mat2* H, Vec2* g, Vec2* r, Mat2* M)
   m.addParameterBlock(2, b, 2, nullptr);
   m.addResidual(std::make_shared<DecoupledResidual>(*M, z), loss, {1, 2});
   Eigen::MatrixXd one = Eigen::MatrixXd::Ones(1, 1);
-  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{one}, Eigen::VectorXd::Zero(1)), nullptr,
-                {1});
+  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{one}, Eigen::VectorXd::Zero(1)),
+                nullptr, {1});
   auto prior = m.marginalise({1});
   ASSERT_TRUE(prior);
   *H = prior->J.transpose() * prior->J;
@@ -341,7 +354,8 @@ TEST(Marginaliser, RobustLossScalesLikeTheSolver) {
   tolerant.Evaluate(r.squaredNorm(), rho);
   ASSERT_GT(rho[2], 0.0);
   const Vec2 Jtr = M.transpose() * r;
-  EXPECT_LT((H - (rho[1] * M.transpose() * M + 2.0 * rho[2] * Jtr * Jtr.transpose())).cwiseAbs().maxCoeff(), 1e-10);
+  EXPECT_LT((H - (rho[1] * M.transpose() * M + 2.0 * rho[2] * Jtr * Jtr.transpose())).cwiseAbs().maxCoeff(),
+            1e-10);
   EXPECT_LT((g - rho[1] * Jtr).cwiseAbs().maxCoeff(), 1e-12);
 
   // No loss: plain Gauss-Newton.

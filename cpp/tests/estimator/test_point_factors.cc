@@ -1,5 +1,6 @@
 // Point residuals: analytic Jacobians against the shared checker (random poses, depths 0.5-20 m), the checker
-// catching a wrong Jacobian at the tolerance used here, the pixel error helper, and a small bundle adjustment.
+// catching a wrong Jacobian at the tolerance used here, the pixel error helper, and a small bundle
+// adjustment.
 #include "linnet/estimator/factors/point_factors.h"
 
 #include <array>
@@ -17,8 +18,8 @@
 namespace linnet {
 namespace {
 
-constexpr double kFocal = 458.0;                  // EuRoC cam0, pixels
-constexpr double kTol = 1e-6;                     // checker's relative tolerance
+constexpr double kFocal = 458.0;  // EuRoC cam0, pixels
+constexpr double kTol = 1e-6;     // checker's relative tolerance
 const double kSqrtInfo = pointSqrtInformation(kFocal);
 
 Pose poseFromRowMajor(const double m[12]) {
@@ -29,15 +30,15 @@ Pose poseFromRowMajor(const double m[12]) {
 
 // EuRoC MAV extrinsics (sensor.yaml T_BS of cam0 and cam1).
 Pose eurocTBC0() {
-  const double m[12] = {0.0148655429818, -0.999880929698, 0.00414029679422, -0.0216401454975,
-                        0.999557249008,  0.0149672133247, 0.025715529948,   -0.064676986768,
-                        -0.0257744366974, 0.00375618835797, 0.999660727178, 0.00981073058949};
+  const double m[12] = {0.0148655429818,  -0.999880929698,  0.00414029679422, -0.0216401454975,
+                        0.999557249008,   0.0149672133247,  0.025715529948,   -0.064676986768,
+                        -0.0257744366974, 0.00375618835797, 0.999660727178,   0.00981073058949};
   return poseFromRowMajor(m);
 }
 Pose eurocTBC1() {
-  const double m[12] = {0.0125552670891, -0.999755099723, 0.0182237714554, -0.0198435579556,
-                        0.999598781151,  0.0130119051815, 0.0251588363115, 0.0453689425024,
-                        -0.0253898008918, 0.0179005838253, 0.999517347078, 0.00786212447038};
+  const double m[12] = {0.0125552670891,  -0.999755099723, 0.0182237714554, -0.0198435579556,
+                        0.999598781151,   0.0130119051815, 0.0251588363115, 0.0453689425024,
+                        -0.0253898008918, 0.0179005838253, 0.999517347078,  0.00786212447038};
   return poseFromRowMajor(m);
 }
 
@@ -58,15 +59,16 @@ struct Scenario {
   Vec3 p_W;
 };
 
-/// Random host pose, a point 0.5-20 m in front of the host camera, a target frame moved by up to 0.3 rad / 0.4 m
-/// that still sees the point in front. Observations are exact plus `noise` (normalised units).
+/// Random host pose, a point 0.5-20 m in front of the host camera, a target frame moved by up to 0.3 rad /
+/// 0.4 m that still sees the point in front. Observations are exact plus `noise` (normalised units).
 Scenario randomScenario(std::mt19937& rng, const Pose& T_B_Ch, const Pose& T_B_Ct, double noise) {
   std::uniform_real_distribution<double> u(-1.0, 1.0), depth(0.5, 20.0);
   std::normal_distribution<double> nz(0.0, noise);
   for (;;) {
     Scenario s;
     s.T_W_Bi = Pose(randomRotation(rng), Vec3(5.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng)));
-    s.T_W_Bj = s.T_W_Bi * Pose(expSO3(0.3 * Vec3(u(rng), u(rng), u(rng))), 0.4 * Vec3(u(rng), u(rng), u(rng)));
+    s.T_W_Bj =
+        s.T_W_Bi * Pose(expSO3(0.3 * Vec3(u(rng), u(rng), u(rng))), 0.4 * Vec3(u(rng), u(rng), u(rng)));
     const double d = depth(rng);
     s.uv_host = Vec2(0.5 * u(rng), 0.4 * u(rng));
     s.inv_depth = 1.0 / d;
@@ -133,8 +135,8 @@ TEST(PointFactors, StereoJacobianAndZeroResidualAtTruth) {
 /// Wraps a factor and corrupts one Jacobian entry by a relative amount: the checker must reject it.
 class CorruptedFactor : public ceres::SizedCostFunction<2, 7, 7, 1> {
  public:
-  CorruptedFactor(const PointReprojectionFactor& f, int block, int entry, double rel) :
-      f_(f), block_(block), entry_(entry), rel_(rel) {}
+  CorruptedFactor(const PointReprojectionFactor& f, int block, int entry, double rel)
+      : f_(f), block_(block), entry_(entry), rel_(rel) {}
   bool Evaluate(double const* const* p, double* r, double** J) const override {
     if (!f_.Evaluate(p, r, J)) return false;
     if (J != nullptr && J[block_] != nullptr) J[block_][entry_] *= 1.0 + rel_;
@@ -159,7 +161,8 @@ TEST(PointFactors, CheckerRejectsSlightlyWrongJacobians) {
   // A 1e-3 relative error in a position, a rotation or the inverse-depth entry must fail at kTol.
   for (auto [block, entry] : {std::pair{0, 0}, std::pair{1, 4}, std::pair{0, 12}, std::pair{2, 1}}) {
     const CorruptedFactor bad(f, block, entry, 1e-3);
-    EXPECT_FALSE(testing::checkJacobians(bad, {pi, pj, rho}, {&pose_manifold, &pose_manifold, nullptr}).ok(kTol))
+    EXPECT_FALSE(
+        testing::checkJacobians(bad, {pi, pj, rho}, {&pose_manifold, &pose_manifold, nullptr}).ok(kTol))
         << "block " << block << " entry " << entry;
   }
 }
@@ -172,24 +175,25 @@ TEST(PointFactors, PixelErrorMatchesResidual) {
     const PointReprojectionFactor f(s.uv_host, s.uv_target, eurocTBC0(), T_B_Ct, kSqrtInfo);
     Vec2 r;
     ASSERT_TRUE(f.evaluateTangent(s.T_W_Bi, s.T_W_Bj, s.inv_depth, &r, nullptr, nullptr, nullptr));
-    const double px = pointReprojectionErrorPx(s.uv_host, s.uv_target, eurocTBC0(), T_B_Ct, s.T_W_Bi, s.T_W_Bj,
-                                               s.inv_depth, kFocal);
+    const double px = pointReprojectionErrorPx(s.uv_host, s.uv_target, eurocTBC0(), T_B_Ct, s.T_W_Bi,
+                                               s.T_W_Bj, s.inv_depth, kFocal);
     EXPECT_NEAR(px, r.norm() / kSqrtInfo * kFocal, 1e-9);
     // Exact observation: zero error.
     const Vec2 uv_exact = projectInto(s.T_W_Bj * T_B_Ct, s.p_W);
-    EXPECT_LT(pointReprojectionErrorPx(s.uv_host, uv_exact, eurocTBC0(), T_B_Ct, s.T_W_Bi, s.T_W_Bj, s.inv_depth,
-                                       kFocal), 1e-8);
+    EXPECT_LT(pointReprojectionErrorPx(s.uv_host, uv_exact, eurocTBC0(), T_B_Ct, s.T_W_Bi, s.T_W_Bj,
+                                       s.inv_depth, kFocal),
+              1e-8);
   }
   // Negative inverse depth or a point behind the target camera: infinite error (rejected as an outlier).
-  EXPECT_TRUE(std::isinf(pointReprojectionErrorPx(Vec2::Zero(), Vec2::Zero(), Pose(), Pose(), Pose(), Pose(), -1.0,
-                                                  kFocal)));
+  EXPECT_TRUE(std::isinf(
+      pointReprojectionErrorPx(Vec2::Zero(), Vec2::Zero(), Pose(), Pose(), Pose(), Pose(), -1.0, kFocal)));
   const Pose behind(expSO3(Vec3(0.0, 3.14159265358979, 0.0)), Vec3(0.0, 0.0, 0.0));
-  EXPECT_TRUE(std::isinf(pointReprojectionErrorPx(Vec2::Zero(), Vec2::Zero(), Pose(), Pose(), Pose(), behind, 0.5,
-                                                  kFocal)));
+  EXPECT_TRUE(std::isinf(
+      pointReprojectionErrorPx(Vec2::Zero(), Vec2::Zero(), Pose(), Pose(), Pose(), behind, 0.5, kFocal)));
 }
 
-/// A small stereo bundle adjustment with all three kinds: poses 1..N-1 and inverse depths perturbed, pose 0 fixed;
-/// noise-free observations, so the solve must return the truth.
+/// A small stereo bundle adjustment with all three kinds: poses 1..N-1 and inverse depths perturbed, pose 0
+/// fixed; noise-free observations, so the solve must return the truth.
 TEST(PointFactors, BundleAdjustmentWithAllThreeKindsRecoversTruth) {
   std::mt19937 rng(6);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -220,16 +224,18 @@ TEST(PointFactors, BundleAdjustmentWithAllThreeKindsRecoversTruth) {
   for (int p = 0; p < n_points; ++p) {
     uv_host[p] = projectInto(truth[0] * T_B_C0, points[p]);
     rho[p] = (1.0 / ((truth[0] * T_B_C0).inverse() * points[p]).z()) * (1.0 + 0.2 * u(rng));
-    problem.AddResidualBlock(new PointStereoFactor(uv_host[p], projectInto(truth[0] * T_B_C1, points[p]), T_B_C0,
-                                                   T_B_C1, kSqrtInfo),
+    problem.AddResidualBlock(new PointStereoFactor(uv_host[p], projectInto(truth[0] * T_B_C1, points[p]),
+                                                   T_B_C0, T_B_C1, kSqrtInfo),
                              nullptr, &rho[p]);
     for (int k = 1; k < n_frames; ++k) {
-      problem.AddResidualBlock(new PointReprojectionFactor(uv_host[p], projectInto(truth[k] * T_B_C0, points[p]),
-                                                           T_B_C0, T_B_C0, kSqrtInfo),
-                               new ceres::HuberLoss(1.0), poses[0].data(), poses[k].data(), &rho[p]);
-      problem.AddResidualBlock(new PointReprojectionFactor(uv_host[p], projectInto(truth[k] * T_B_C1, points[p]),
-                                                           T_B_C0, T_B_C1, kSqrtInfo),
-                               new ceres::HuberLoss(1.0), poses[0].data(), poses[k].data(), &rho[p]);
+      problem.AddResidualBlock(
+          new PointReprojectionFactor(uv_host[p], projectInto(truth[k] * T_B_C0, points[p]), T_B_C0, T_B_C0,
+                                      kSqrtInfo),
+          new ceres::HuberLoss(1.0), poses[0].data(), poses[k].data(), &rho[p]);
+      problem.AddResidualBlock(
+          new PointReprojectionFactor(uv_host[p], projectInto(truth[k] * T_B_C1, points[p]), T_B_C0, T_B_C1,
+                                      kSqrtInfo),
+          new ceres::HuberLoss(1.0), poses[0].data(), poses[k].data(), &rho[p]);
     }
   }
   ceres::Solver::Options options;

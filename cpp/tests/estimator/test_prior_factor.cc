@@ -1,7 +1,7 @@
-// PriorFactor through the shared Jacobian checker (pose, Euclidean and a generic manifold block, away from x0), and
-// marginalisation of a nonlinear problem with PoseManifold blocks: minimum at x0 for consistent data, gradient and
-// curvature of the prior against the exact marginal cost min_A F, and re-marginalisation equal to one-shot
-// elimination.
+// PriorFactor through the shared Jacobian checker (pose, Euclidean and a generic manifold block, away from
+// x0), and marginalisation of a nonlinear problem with PoseManifold blocks: minimum at x0 for consistent
+// data, gradient and curvature of the prior against the exact marginal cost min_A F, and re-marginalisation
+// equal to one-shot elimination.
 #include "linnet/estimator/factors/prior_factor.h"
 
 #include <array>
@@ -10,9 +10,9 @@
 #include <random>
 #include <vector>
 
-#include <Eigen/Dense>
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 #include "linnet/core/error.h"
 #include "linnet/core/pose.h"
@@ -75,7 +75,8 @@ std::shared_ptr<ceres::CostFunction> posePrior(const Pose& m, double w) {
   return std::make_shared<ceres::AutoDiffCostFunction<PosePriorFunctor, 6, 7>>(new PosePriorFunctor{m, w});
 }
 std::shared_ptr<ceres::CostFunction> relative(const Pose& m, double w) {
-  return std::make_shared<ceres::AutoDiffCostFunction<RelativePoseFunctor, 6, 7, 7>>(new RelativePoseFunctor{m, w});
+  return std::make_shared<ceres::AutoDiffCostFunction<RelativePoseFunctor, 6, 7, 7>>(
+      new RelativePoseFunctor{m, w});
 }
 std::shared_ptr<ceres::CostFunction> landmark(const Vec3& m, double w) {
   return std::make_shared<ceres::AutoDiffCostFunction<LandmarkFunctor, 3, 7, 3>>(new LandmarkFunctor{m, w});
@@ -107,7 +108,8 @@ TEST(PriorFactor, JacobiansMatchThroughManifoldsAwayFromX0) {
     prior->ambient_sizes = {7, 3, 4};
     prior->tangent_sizes = {6, 3, 3};
     prior->tangent_offsets = {0, 6, 9};
-    prior->x0 = {std::vector<double>(x0_pose.begin(), x0_pose.end()), {0.1, -0.2, 0.3},
+    prior->x0 = {std::vector<double>(x0_pose.begin(), x0_pose.end()),
+                 {0.1, -0.2, 0.3},
                  {q0.x(), q0.y(), q0.z(), q0.w()}};
     prior->manifolds = {&pose_manifold, nullptr, &quat_manifold};
     prior->J = Eigen::MatrixXd::NullaryExpr(10, 12, [&] { return n(rng); });
@@ -121,7 +123,8 @@ TEST(PriorFactor, JacobiansMatchThroughManifoldsAwayFromX0) {
     double x_e[3] = {0.5, 0.4, -0.7};
     const Eigen::Quaterniond q = q0 * expSO3(Vec3(0.4, -0.3, 0.2));
     double x_q[4] = {q.x(), q.y(), q.z(), q.w()};
-    ASSERT_TRUE(testing::jacobiansMatch(f, {x_pose.data(), x_e, x_q}, {&pose_manifold, nullptr, &quat_manifold}, 1e-6))
+    ASSERT_TRUE(testing::jacobiansMatch(f, {x_pose.data(), x_e, x_q},
+                                        {&pose_manifold, nullptr, &quat_manifold}, 1e-6))
         << "trial " << trial;
 
     // At x0 the residual is r.
@@ -262,7 +265,8 @@ TEST(PriorFactor, NonlinearGradientMatchesTheMarginalCost) {
   // Inconsistent measurements: x0 is not a minimum, the prior carries a gradient.
   s.build(s.A * randomPose(rng, 0.05, 0.1), randomPose(rng, 0.05, 0.1) * (s.A.inverse() * s.B),
           s.A.inverse() * s.c + Vec3(0.05, -0.03, 0.02));
-  // Put A at its conditional optimum given B and c, as after a solve: then d m / d x = dF / dx (envelope theorem).
+  // Put A at its conditional optimum given B and c, as after a solve: then d m / d x = dF / dx (envelope
+  // theorem).
   Block7 a = block(s.A);
   const Block7 b0 = block(s.B);
   const double m0 = marginalCost(s, &a, b0.data(), s.c.data(), &pm);
@@ -288,7 +292,8 @@ TEST(PriorFactor, NonlinearGradientMatchesTheMarginalCost) {
     g_num(i) = (fp - fm) / (2.0 * h);
   }
   EXPECT_LT((g_prior - g_num).cwiseAbs().maxCoeff(), 1e-5 * (1.0 + g_num.cwiseAbs().maxCoeff()))
-      << g_prior.transpose() << "\n" << g_num.transpose();
+      << g_prior.transpose() << "\n"
+      << g_num.transpose();
   EXPECT_GT(g_num.norm(), 1e-2);  // the test is not vacuous
 
   // Cost differences agree to second order (Gauss-Newton curvature; the residuals here are small).
@@ -311,7 +316,8 @@ TEST(PriorFactor, NonlinearGradientMatchesTheMarginalCost) {
 TEST(PriorFactor, RemarginalisationEqualsOneShotEliminationOnPoses) {
   std::mt19937 rng(34);
   PoseManifold pm;
-  const Pose A = randomPose(rng, 1.0, 2.0), B = A * randomPose(rng, 0.3, 1.0), C = B * randomPose(rng, 0.3, 1.0);
+  const Pose A = randomPose(rng, 1.0, 2.0), B = A * randomPose(rng, 0.3, 1.0),
+             C = B * randomPose(rng, 0.3, 1.0);
   const Vec3 c(0.5, 1.0, 5.0);
   auto noisy = [&](const Pose& T) { return T * randomPose(rng, 0.02, 0.05); };
   auto pA = posePrior(noisy(A), 10.0);
@@ -362,8 +368,9 @@ TEST(PriorFactor, RemarginalisationEqualsOneShotEliminationOnPoses) {
   EXPECT_NEAR(p2->costAtX0(), p12->costAtX0(), 1e-9 * (1.0 + p12->costAtX0()));
 }
 
-/// The prior works inside a real Ceres solve: with the prior on B and c plus the remaining residuals, the optimum of
-/// B, c matches the full problem's optimum (to the accuracy of the linearisation: tiny for near-consistent data).
+/// The prior works inside a real Ceres solve: with the prior on B and c plus the remaining residuals, the
+/// optimum of B, c matches the full problem's optimum (to the accuracy of the linearisation: tiny for
+/// near-consistent data).
 TEST(PriorFactor, SolvesInCeresLikeTheFullProblem) {
   std::mt19937 rng(35);
   PoseManifold pm;

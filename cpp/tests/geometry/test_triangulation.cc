@@ -1,4 +1,5 @@
-// Triangulation on synthetic views: exact recovery without noise, bounded error with noise, and the rejection checks.
+// Triangulation on synthetic views: exact recovery without noise, bounded error with noise, and the rejection
+// checks.
 #include "linnet/geometry/triangulation.h"
 
 #include <cmath>
@@ -67,7 +68,8 @@ TEST(Triangulation, TwoViewRecoversStereoDepthAndParallax) {
     const Vec3 p_true(0.3, -0.2, depth);
     Vec3 p;
     double parallax = -1.0;
-    ASSERT_TRUE(triangulateTwoView(T_W_C0, project(T_W_C0, p_true), T_W_C1, project(T_W_C1, p_true), &p, &parallax));
+    ASSERT_TRUE(
+        triangulateTwoView(T_W_C0, project(T_W_C0, p_true), T_W_C1, project(T_W_C1, p_true), &p, &parallax));
     EXPECT_NEAR((p - p_true).norm(), 0.0, 1e-9 * depth);
     // The angle subtended by the baseline at the point.
     const double expected = std::acos((p_true - T_W_C0.p).normalized().dot((p_true - T_W_C1.p).normalized()));
@@ -127,7 +129,8 @@ TEST(Triangulation, CheckedStatuses) {
   const Pose b(Quat::Identity(), Vec3(0.5, 0.0, 0.0));
   Vec3 p = Vec3::Constant(-7.0);
   const Vec3 p_true(0.1, 0.2, 3.0);
-  EXPECT_EQ(triangulateChecked({a, b}, {project(a, p_true), project(b, p_true)}, opt, &p), TriangulationStatus::kOk);
+  EXPECT_EQ(triangulateChecked({a, b}, {project(a, p_true), project(b, p_true)}, opt, &p),
+            TriangulationStatus::kOk);
   EXPECT_LT((p - p_true).norm(), 1e-9);
 
   EXPECT_EQ(triangulateChecked({a}, {Vec2::Zero()}, opt, &p), TriangulationStatus::kTooFewViews);
@@ -144,9 +147,10 @@ TEST(Triangulation, CheckedStatuses) {
 
   // Inconsistent observations in three views: large reprojection error.
   const Pose d(Quat::Identity(), Vec3(0.0, 0.5, 0.0));
-  EXPECT_EQ(triangulateChecked({a, b, d}, {project(a, p_true), project(b, p_true), project(d, p_true) + Vec2(0.1, 0.0)},
-                               opt, &p),
-            TriangulationStatus::kHighError);
+  EXPECT_EQ(
+      triangulateChecked(
+          {a, b, d}, {project(a, p_true), project(b, p_true), project(d, p_true) + Vec2(0.1, 0.0)}, opt, &p),
+      TriangulationStatus::kHighError);
   EXPECT_STREQ(toString(TriangulationStatus::kHighError), "high reprojection error");
 }
 

@@ -1,23 +1,27 @@
-// Schur-complement marginalisation (DESIGN B1): linearise the residuals that touch the blocks to drop, eliminate
-// those blocks from H dx = -g, and return the result as a square-root prior (MarginalizationPrior) on the blocks they
-// were connected to.
+// Schur-complement marginalisation (DESIGN B1): linearise the residuals that touch the blocks to drop,
+// eliminate those blocks from H dx = -g, and return the result as a square-root prior (MarginalizationPrior)
+// on the blocks they were connected to.
 //
 // Usage (one Marginaliser per marginalisation step):
 //   Marginaliser m;
-//   m.addParameterBlock(key, values, ambient_size, manifold_or_nullptr);   // for every block a residual touches
-//   m.addResidual(cost, loss, {key_a, key_b, ...});                          // every residual touching a dropped block
-//   auto prior = m.marginalise({keys to drop});                              // -> PriorFactor(prior) in the next window
-// A previous prior is re-marginalised by adding std::make_shared<PriorFactor>(old_prior) with keys old_prior->keys.
+//   m.addParameterBlock(key, values, ambient_size, manifold_or_nullptr);   // for every block a residual
+//   touches m.addResidual(cost, loss, {key_a, key_b, ...});                          // every residual
+//   touching a dropped block auto prior = m.marginalise({keys to drop});                              // ->
+//   PriorFactor(prior) in the next window
+// A previous prior is re-marginalised by adding std::make_shared<PriorFactor>(old_prior) with keys
+// old_prior->keys.
 //
-// Elimination runs in two stages that give the same Schur complement: first the dropped blocks that share no residual
-// with one another (e.g. the inverse depths hosted by the dropped frame: H_PP is block-diagonal, inverted block by
-// block), then the remaining dropped blocks through a dense eigen-decomposition (pseudo-inverse with the threshold).
-// The result H* = V S V^T becomes J = sqrt(S) V^T, r = sqrt(S)^-1 V^T g* over the eigenvalues above the threshold.
+// Elimination runs in two stages that give the same Schur complement: first the dropped blocks that share no
+// residual with one another (e.g. the inverse depths hosted by the dropped frame: H_PP is block-diagonal,
+// inverted block by block), then the remaining dropped blocks through a dense eigen-decomposition
+// (pseudo-inverse with the threshold). The result H* = V S V^T becomes J = sqrt(S) V^T, r = sqrt(S)^-1 V^T g*
+// over the eigenvalues above the threshold.
 //
 // Robust losses: each residual is corrected as Ceres' own trust-region solver does (Triggs et al., "Bundle
-// adjustment - a modern synthesis", 2000, sec. 4.3): r' = sqrt(rho')/(1 - a) r, J' = sqrt(rho') (I - a r r^T/|r|^2) J
-// with a = 1 - sqrt(1 + 2 |r|^2 rho''/rho'); when rho'' <= 0 (Huber, Cauchy, ...) this is the plain sqrt(rho')
-// scaling of residual and Jacobian that VINS-Mono uses. So H and g match what the solver saw at its last step.
+// adjustment - a modern synthesis", 2000, sec. 4.3): r' = sqrt(rho')/(1 - a) r, J' = sqrt(rho') (I - a r
+// r^T/|r|^2) J with a = 1 - sqrt(1 + 2 |r|^2 rho''/rho'); when rho'' <= 0 (Huber, Cauchy, ...) this is the
+// plain sqrt(rho') scaling of residual and Jacobian that VINS-Mono uses. So H and g match what the solver saw
+// at its last step.
 #pragma once
 
 #include <map>
@@ -33,13 +37,12 @@
 namespace linnet {
 
 struct MarginaliserOptions {
-  double eigenvalue_threshold = 1e-8;  // eigenvalues of H_mm and of the Schur complement below this are treated as 0
-                                       // (pseudo-inverse; the prior keeps only directions above it). Units: information
-                                       // (1 / tangent unit^2).
-
-  double relative_eigenvalue_threshold = 1e-13;  // ... and so are eigenvalues below this times the largest one of the
-                                                 // same matrix (round-off level: condition numbers past ~1e13 carry
-                                                 // no information in double precision). Dimensionless.
+  // Eigenvalues of H_mm and of the Schur complement at or below max(eigenvalue_threshold,
+  // relative_eigenvalue_threshold * largest eigenvalue of that matrix) count as zero: H_mm is pseudo-inverted
+  // and the prior keeps only the directions above the threshold. The relative part removes round-off-level
+  // directions (condition numbers past ~1e13 carry no information in double precision).
+  double eigenvalue_threshold = 1e-8;            // information units (1 / tangent unit^2)
+  double relative_eigenvalue_threshold = 1e-13;  // dimensionless
 
   template <class V>
   void visit(V& v) {
@@ -51,34 +54,37 @@ struct MarginaliserOptions {
 
 /// Statistics of the last marginalise() call, for logs and tests.
 struct MarginalisationStats {
-  int residuals_used = 0;       // residuals touching a dropped block
-  int dropped_size = 0;         // tangent dimension eliminated
-  int kept_size = 0;            // tangent dimension of the prior's blocks
-  int prior_rank = 0;           // rows of the prior's J
+  int residuals_used = 0;           // residuals touching a dropped block
+  int dropped_size = 0;             // tangent dimension eliminated
+  int kept_size = 0;                // tangent dimension of the prior's blocks
+  int prior_rank = 0;               // rows of the prior's J
   int dropped_rank_deficiency = 0;  // eigenvalues of H_mm below the threshold
-  int decoupled_blocks = 0;     // dropped blocks eliminated in the cheap block-diagonal first stage
+  int decoupled_blocks = 0;         // dropped blocks eliminated in the cheap block-diagonal first stage
 };
 
 class Marginaliser {
  public:
   explicit Marginaliser(MarginaliserOptions options = {});
 
-  /// Registers a parameter block. `values` (ambient_size doubles) is COPIED now: the linearisation point is the
-  /// value at registration. `manifold` (nullptr = Euclidean) is not owned and must outlive the returned prior.
-  /// Throws UsageError on a duplicate key or inconsistent sizes.
-  void addParameterBlock(BlockKey key, const double* values, int ambient_size, const ceres::Manifold* manifold);
+  /// Registers a parameter block. `values` (ambient_size doubles) is COPIED now: the linearisation point is
+  /// the value at registration. `manifold` (nullptr = Euclidean) is not owned and must outlive the returned
+  /// prior. Throws UsageError on a duplicate key or inconsistent sizes.
+  void addParameterBlock(BlockKey key, const double* values, int ambient_size,
+                         const ceres::Manifold* manifold);
 
   /// Declares a block as held constant: its columns are not estimated, it never enters a prior.
   void setParameterBlockConstant(BlockKey key);
 
-  /// Adds a residual over registered blocks (in the cost function's parameter order). `loss` (may be nullptr) is not
-  /// owned and must stay alive until marginalise() returns. Throws UsageError on an unknown key or a size mismatch.
-  void addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss, std::vector<BlockKey> keys);
+  /// Adds a residual over registered blocks (in the cost function's parameter order). `loss` (may be nullptr)
+  /// is not owned and must stay alive until marginalise() returns. Throws UsageError on an unknown key or a
+  /// size mismatch.
+  void addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss,
+                   std::vector<BlockKey> keys);
 
-  /// Linearises every residual that touches a block of `drop` at the registered values, eliminates `drop` and returns
-  /// the prior over every other non-constant block those residuals touch (in registration order). Returns nullptr if
-  /// no residual touches a dropped block or the prior would have rank 0. Throws UsageError for an unregistered key,
-  /// InputError if a cost function fails to evaluate or returns non-finite values.
+  /// Linearises every residual that touches a block of `drop` at the registered values, eliminates `drop` and
+  /// returns the prior over every other non-constant block those residuals touch (in registration order).
+  /// Returns nullptr if no residual touches a dropped block or the prior would have rank 0. Throws UsageError
+  /// for an unregistered key, InputError if a cost function fails to evaluate or returns non-finite values.
   std::shared_ptr<const MarginalizationPrior> marginalise(const std::vector<BlockKey>& drop);
 
   const MarginalisationStats& lastStats() const { return stats_; }
@@ -102,7 +108,8 @@ class Marginaliser {
 
   /// `dropped` reordered so that the first *num_decoupled blocks share no residual (block-diagonal H_PP).
   std::vector<BlockKey> orderForElimination(const std::vector<BlockKey>& dropped,
-                                            const std::vector<const Residual*>& used, int* num_decoupled) const;
+                                            const std::vector<const Residual*>& used,
+                                            int* num_decoupled) const;
 
   MarginaliserOptions options_;
   std::map<BlockKey, Block> blocks_;

@@ -1,15 +1,15 @@
 // The three point residuals of DESIGN B1 (thesis ch. 4), in normalised image coordinates.
 //
-// A point is an inverse depth rho anchored at its first observation: host frame i, host camera C_h, normalised
-// observation uv_h, so p_Ch = (uv_h, 1) / rho. Transferred into a target camera C_t of frame j:
+// A point is an inverse depth rho anchored at its first observation: host frame i, host camera C_h,
+// normalised observation uv_h, so p_Ch = (uv_h, 1) / rho. Transferred into a target camera C_t of frame j:
 //     p_Bi = T_B_Ch p_Ch,  p_W = T_W_Bi p_Bi,  p_Bj = T_W_Bj^-1 p_W,  p_Ct = T_B_Ct^-1 p_Bj
 //     r = sqrt_info * (p_Ct.xy / p_Ct.z - uv_t)
 // Kinds: (1) same camera, two frames (T_B_C0, T_B_C0); (2) left camera at frame i -> right camera at frame j
 // (T_B_C0, T_B_C1); (3) left -> right in the same frame: PointStereoFactor, which depends only on rho.
 //
-// Parameter blocks: pose T_W_Bi (7 = [p, q xyzw], PoseManifold), pose T_W_Bj (7), inverse depth (1). Extrinsics are
-// constants. Jacobians are analytic in the tangent space [dp, dtheta] (p <- p + dp, R <- R Exp(dtheta)) and handed
-// to Ceres through tangentToAmbientPose().
+// Parameter blocks: pose T_W_Bi (7 = [p, q xyzw], PoseManifold), pose T_W_Bj (7), inverse depth (1).
+// Extrinsics are constants. Jacobians are analytic in the tangent space [dp, dtheta] (p <- p + dp, R <- R
+// Exp(dtheta)) and handed to Ceres through tangentToAmbientPose().
 #pragma once
 
 #include <ceres/sized_cost_function.h>
@@ -25,13 +25,13 @@ inline double pointSqrtInformation(double focal_px, double sigma_px = 1.5) { ret
 /// Kinds (1) and (2): the host observation transferred into another frame's camera.
 class PointReprojectionFactor : public ceres::SizedCostFunction<2, 7, 7, 1> {
  public:
-  PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost, const Pose& T_B_Ctarget,
-                          double sqrt_info);
+  PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost,
+                          const Pose& T_B_Ctarget, double sqrt_info);
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
 
-  /// Residual and tangent Jacobians (w.r.t. [dp_i, dtheta_i], [dp_j, dtheta_j], rho); any output may be nullptr.
-  /// Returns false if the result is not finite.
+  /// Residual and tangent Jacobians (w.r.t. [dp_i, dtheta_i], [dp_j, dtheta_j], rho); any output may be
+  /// nullptr. Returns false if the result is not finite.
   bool evaluateTangent(const Pose& T_W_Bi, const Pose& T_W_Bj, double inv_depth, Vec2* residual,
                        Eigen::Matrix<double, 2, 6>* J_pose_i, Eigen::Matrix<double, 2, 6>* J_pose_j,
                        Vec2* J_inv_depth) const;
