@@ -14,7 +14,7 @@ import yaml
 from linnet.sim import InputError, build_scene, builtin_loop, load_trajectory
 from linnet.sim import writer
 from linnet.sim.groundtruth import SequenceTruth, project_points, read_csv_ns, sample_segments
-from linnet.sim.rig import EUROC_CAM0, EUROC_CAM1
+from linnet.sim.rig import EUROC_CAM0, EUROC_CAM1, project
 from linnet.sim.rotations import quat_mul, quat_to_matrix
 from linnet.sim.simulator import CAMERA_EVERY, prepare, simulate
 from linnet.sim.trajectory import GRAVITY_W, SplineTrajectory
@@ -283,10 +283,8 @@ def test_cam1_agrees_with_cam0_through_the_written_extrinsics(replay):
             if z <= 0 or win.size < 25 or np.ptp(win) > 0.02 * z:
                 continue  # corner on a depth discontinuity: its depth is ambiguous
             # Undistort by fixed-point iteration of the radtan model, then lift and move to cam1.
-            from linnet.sim.rig import project
             fx, fy, cx, cy = c0.intrinsics
             uv = np.array([(x - cx) / fx, (y - cy) / fy])
-            target = uv.copy()
             for _ in range(50):
                 d = project(c0, np.array([[uv[0], uv[1], 1.0]]))[0]
                 uv += (np.array([x, y]) - d) / [fx, fy]

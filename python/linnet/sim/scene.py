@@ -51,7 +51,6 @@ class _Builder:
     def __init__(self, name: str, rng: np.random.Generator, path: np.ndarray, texel_m: float):
         self.spec = SceneSpec(name)
         self.rng, self.path, self.texel = rng, path, texel_m
-        self.lowtex_fn = lambda p: name == "lowtex"
 
     # --- primitives
     def texture(self, img: np.ndarray) -> int:
