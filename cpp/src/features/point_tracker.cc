@@ -154,7 +154,8 @@ void PointTracker::trackTemporal(double dt) {
   std::vector<float> err;
   cv::calcOpticalFlowPyrLK(pyr_prev_, pyr_cur_, prev, cur, st_f, err, win, opt_.klt_pyramid_levels, crit,
                            cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
-  // Backward check, only for the points the forward pass kept (and inside the image).
+  // Backward check, only for the points the forward pass kept (and inside the image). It starts at the previous
+  // position; fewer levels are cheaper but weaker (VINS-Fusion uses 1).
   std::vector<cv::Point2f> fwd, back;
   std::vector<std::size_t> fwd_idx;
   for (std::size_t i = 0; i < n; ++i)
@@ -164,7 +165,8 @@ void PointTracker::trackTemporal(double dt) {
       back.push_back(prev[i]);
     }
   if (!fwd.empty())
-    cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, err, win, opt_.klt_pyramid_levels, crit,
+    cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, err, win,
+                             std::min(opt_.fb_pyramid_levels, opt_.klt_pyramid_levels), crit,
                              cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
   std::vector<unsigned char> ok(n, 0);
   const double fb2 = opt_.fb_threshold_px * opt_.fb_threshold_px;

@@ -33,10 +33,13 @@ struct PointTrackerOptions {
   double klt_min_eigen = 1e-4;           // KLT drops windows whose gradient matrix's smallest eigenvalue (per pixel,
                                          // intensities scaled to [0, 1]) is below this: flat patches
   double fb_threshold_px = 0.5;          // forward-backward round trip error above which a track is dropped, pixels
+  int fb_pyramid_levels = 3;             // pyramid levels of the backward pass (1 is cheaper but lets ~50% more
+                                         // false tracks through on noise images)
   double border_px = 3.0;                // tracks closer to the image border are dropped, pixels
   // Two-view outlier rejection on undistorted points
   std::string outlier_rejection = "auto";  // "auto" (rotation when a prediction was given, else fundamental) |
-                                           // "rotation" (2-point, needs the prediction) | "fundamental" | "none"
+                                           // "rotation" (2-point; fundamental when no prediction was given) |
+                                           // "fundamental" | "none"
   double ransac_threshold_px = 1.0;      // epipolar distance, pixels (divided by the focal length)
   double ransac_confidence = 0.99;       // RANSAC stopping confidence
   int ransac_max_iterations = 200;       // hypotheses at most
@@ -74,6 +77,7 @@ struct PointTrackerOptions {
     v("klt_epsilon", klt_epsilon, "KLT termination step, pixels", 1e-6, 10.0);
     v("klt_min_eigen", klt_min_eigen, "KLT minimum eigenvalue of the window's gradient matrix", 0.0, 1.0);
     v("fb_threshold_px", fb_threshold_px, "forward-backward round trip error, pixels", 0.01, 100.0);
+    v("fb_pyramid_levels", fb_pyramid_levels, "pyramid levels of the backward KLT pass", 0, 8);
     v("border_px", border_px, "tracks closer to the border are dropped, pixels", 0.0, 200.0);
     v.choice("outlier_rejection", outlier_rejection, "two-view outlier rejection",
              {"auto", "rotation", "fundamental", "none"});
