@@ -206,14 +206,22 @@ void encode(YAML::Emitter& out, const std::string& v) {
   out << v;
 }
 
+/// Shortest round-trip text with a '.' in the mantissa ("20.0", "1.0e-09"), so that YAML 1.1 readers
+/// (PyYAML) also see a float; YAML 1.2 readers and ours read the same value either way.
+std::string yamlFloatText(std::string s) {
+  if (s.find_first_of(".n") != std::string::npos) return s;  // has a dot, or is nan/inf (handled by callers)
+  const std::size_t e = s.find('e');
+  s.insert(e == std::string::npos ? s.size() : e, ".0");
+  return s;
+}
+
 void encodeReal(YAML::Emitter& out, double v) {
   if (std::isnan(v)) {
     out << ".nan";
   } else if (std::isinf(v)) {
     out << (v > 0 ? ".inf" : "-.inf");
   } else {
-    std::string s = io::formatDouble(v);
-    out << s;
+    out << yamlFloatText(io::formatDouble(v));
   }
 }
 
@@ -224,7 +232,7 @@ void encodeFloat(YAML::Emitter& out, float v) {
   }
   char buf[32];
   const auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), v);
-  out << std::string(buf, ec == std::errc() ? ptr : buf);
+  out << yamlFloatText(std::string(buf, ec == std::errc() ? ptr : buf));
 }
 
 void encodeInteger(YAML::Emitter& out, std::int64_t v) { out << std::to_string(v); }

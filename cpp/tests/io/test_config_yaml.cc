@@ -164,6 +164,10 @@ TEST(ConfigYaml, SaveLoadRoundTripsExactly) {
   EXPECT_NE(text.find("# features per frame [1, 5000]"), std::string::npos) << text;
   EXPECT_NE(text.find("# corner detector {fast | shi_tomasi}"), std::string::npos) << text;
   EXPECT_NE(text.find("\"123\""), std::string::npos) << text;
+  // Floats always carry a '.', so YAML 1.1 readers (PyYAML) see floats too.
+  EXPECT_NE(text.find("weights: [1.0e-300, -2.5e+17, 0.30000000000000004]"), std::string::npos) << text;
+  EXPECT_NE(text.find("huber_px: 1.0  #"), std::string::npos) << text;
+  EXPECT_NE(text.find("window: [9, 7]"), std::string::npos) << text;
 
   // saveOptions() gives the same values as a node; saving the reloaded options gives the same text.
   const YAML::Node node = saveOptions(o);

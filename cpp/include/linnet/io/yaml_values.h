@@ -123,7 +123,7 @@ void encode(YAML::Emitter& out, bool v);
 void encode(YAML::Emitter& out, const std::string& v);
 void encode(YAML::Emitter& out, const Pose& v);
 void encode(YAML::Emitter& out, const std::vector<bool>& v);
-void encodeReal(YAML::Emitter& out, double v);  // shortest text that reads back to the same double
+void encodeReal(YAML::Emitter& out, double v);  // shortest round-trip text, always with a '.'
 void encodeInteger(YAML::Emitter& out, std::int64_t v);
 
 template <class T>
@@ -154,7 +154,7 @@ template <class S, int R, int C, int O, int MR, int MC>
 void encode(YAML::Emitter& out, const Eigen::Matrix<S, R, C, O, MR, MC>& m) {
   out << YAML::Flow << YAML::BeginSeq;
   for (int r = 0; r < m.rows(); ++r)
-    for (int c = 0; c < m.cols(); ++c) encodeReal(out, static_cast<double>(m(r, c)));
+    for (int c = 0; c < m.cols(); ++c) encode(out, m(r, c));
   out << YAML::EndSeq;
 }
 
