@@ -5,6 +5,7 @@
 
 #include "estimator_core.h"
 #include "linnet/core/error.h"
+#include "linnet/estimator/initial_prior.h"
 #include "linnet/estimator/keyframe_policy.h"
 #include "linnet/estimator/pnp.h"
 #include "linnet/imu/gravity_alignment.h"
@@ -105,7 +106,18 @@ NavState EstimatorCore::firstState(Timestamp t, bool* is_static) const {
   return s;
 }
 
-bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& start, bool velocity_known) {
+void EstimatorCore::addInitialPrior(double velocity_sigma) {
+  const InitOptions& o = options_.init;
+  InitialPriorSigmas s;
+  s.position_m = o.prior_position_m;
+  s.yaw_rad = o.prior_yaw_deg * kDegToRad;
+  s.velocity = velocity_sigma;
+  s.acc_bias = o.prior_acc_bias;
+  s.gyr_bias = o.prior_gyr_bias;
+  priors_.push_back(makeInitialPrior(window_[0], s, &pose_manifold_));
+}
+
+bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& start, double velocity_sigma) {
   window_.clear();
   points_.clear();
   priors_.clear();
@@ -122,7 +134,9 @@ bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& st
     points_.clear();
     return false;
   }
+  const bool velocity_known = velocity_sigma > 0.0;
   mode_ = velocity_known ? Mode::kTracking : Mode::kCollecting;
+  if (velocity_known) addInitialPrior(velocity_sigma);
   return velocity_known;
 }
 
@@ -175,6 +189,7 @@ bool EstimatorCore::finishMovingInit() {
   const int n = window_.size();
   const Preintegration& last = *window_[n - 1].preint;
   window_[n - 1].setV(window_[n - 2].v() + g_W_ * last.sumDt() + window_[n - 2].T_W_B().q * last.beta());
+  addInitialPrior(0.0);
   mode_ = Mode::kTracking;
   return true;
 }
@@ -222,7 +237,7 @@ void EstimatorCore::resetAfterFailure(const FrameObservations& obs, const NavSta
   out->b_g = state.b_g;
   out->reinitialisations = reinitialisations_;
   // A new window from the last good (IMU-propagated) state; tracking resumes at once if the frame has stereo points.
-  if (startWindow(obs, state, true)) lost_since_ = -1;
+  if (startWindow(obs, state, options_.init.prior_velocity_reinit)) lost_since_ = -1;
   else mode_ = Mode::kWaitingForFirstFrame;
 }
 
@@ -262,7 +277,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
       const bool expired = lost_since_ >= 0 && toSeconds(obs.t - lost_since_) > options_.failure.max_dead_reckoning_s;
       if (expired) s.v_W.setZero();  // assume the body stopped rather than integrating without bound
       last_good_ = s;
-      if (startWindow(obs, s, true)) {
+      if (startWindow(obs, s, options_.init.prior_velocity_reinit)) {
         lost_since_ = -1;
         return finish(output(window_.newest()));
       }
@@ -278,7 +293,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
       return finish(out);  // not enough IMU before the first frame yet
     bool is_static = false;
     const NavState s = firstState(obs.t, &is_static);
-    if (startWindow(obs, s, is_static)) {
+    if (startWindow(obs, s, is_static ? options_.init.prior_velocity_static : 0.0)) {
       last_good_ = s;
       return finish(output(window_.newest()));
     }

@@ -35,9 +35,11 @@ class EstimatorCore {
   enum class Mode { kWaitingForFirstFrame, kCollecting, kTracking };
 
   // --- estimator.cc
-  /// Starts a new window at `obs` from the state `start` (pose, velocity, biases). Returns true if the window's
-  /// first frame has enough stereo points for tracking to begin at once (known velocity).
-  bool startWindow(const FrameObservations& obs, const NavState& start, bool velocity_known);
+  /// Starts a new window at `obs` from the state `start` (pose, velocity, biases). velocity_sigma > 0: the velocity
+  /// is known to that std (static start, re-initialisation) and tracking begins at once if the frame has enough
+  /// stereo points (returns true); <= 0: moving start, frames are collected first.
+  bool startWindow(const FrameObservations& obs, const NavState& start, double velocity_sigma);
+  void addInitialPrior(double velocity_sigma);
   /// The state to start the first window from: gravity-aligned attitude, gyro bias / zero velocity when static.
   NavState firstState(Timestamp t, bool* is_static) const;
   /// Moving initialisation: PnP pose of the newest frame; after init.moving_frames, gyro bias + velocities.

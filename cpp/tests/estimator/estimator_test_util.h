@@ -17,6 +17,7 @@ struct RunResult {
   int first_pose = -1;          // index of the first output with a pose
   double ape_rmse = 0.0;        // m, after SE3 alignment of the positions with a pose
   double max_step_m = 0.0;      // largest position change between consecutive outputs with a pose
+  std::vector<double> errors;   // aligned position error of each output with a pose, m
   double median_ms = 0.0, p95_ms = 0.0, max_ms = 0.0;
 };
 
@@ -65,6 +66,7 @@ RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options,
     for (std::size_t i = 0; i < est_p.size(); ++i) {
       const Vec3 a = T.block<3, 3>(0, 0) * est_p[i] + T.block<3, 1>(0, 3);
       sq += (a - gt_p[i]).squaredNorm();
+      r.errors.push_back((a - gt_p[i]).norm());
     }
     r.ape_rmse = std::sqrt(sq / static_cast<double>(est_p.size()));
   }

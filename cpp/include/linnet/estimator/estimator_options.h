@@ -34,6 +34,13 @@ struct InitOptions {
   int moving_frames = 8;             // frames collected by PnP before the gyro bias / velocity solve when moving
   int min_points = 15;               // stereo-triangulated points needed to start (and for each PnP)
   double max_pnp_error_px = 3.0;     // RMS reprojection error that a PnP pose must reach, pixels
+  // The prior that starts a window (initial_prior.h): gauge + what the initialiser knows.
+  double prior_position_m = 1e-3;    // first position (gauge), m
+  double prior_yaw_deg = 0.05;       // first yaw (gauge), deg
+  double prior_velocity_static = 0.02;  // velocity of a static start, m/s
+  double prior_velocity_reinit = 0.2;   // velocity carried over from the last good state, m/s
+  double prior_acc_bias = 0.2;       // accelerometer bias, m/s^2
+  double prior_gyr_bias = 0.01;      // gyroscope bias, rad/s
 
   template <class V>
   void visit(V& v) {
@@ -42,6 +49,12 @@ struct InitOptions {
     v("moving_frames", moving_frames, "frames before the moving initialisation solve", 3, 100);
     v("min_points", min_points, "stereo points needed to initialise", 4, 10000);
     v("max_pnp_error_px", max_pnp_error_px, "largest RMS PnP reprojection error, pixels", 0.1, 100.0);
+    v("prior_position_m", prior_position_m, "first-frame position prior sigma (gauge), m", 1e-9, 1e3);
+    v("prior_yaw_deg", prior_yaw_deg, "first-frame yaw prior sigma (gauge), deg", 1e-9, 180.0);
+    v("prior_velocity_static", prior_velocity_static, "static-start velocity prior sigma, m/s", 1e-6, 100.0);
+    v("prior_velocity_reinit", prior_velocity_reinit, "re-initialisation velocity prior sigma, m/s", 1e-6, 100.0);
+    v("prior_acc_bias", prior_acc_bias, "accelerometer bias prior sigma, m/s^2", 1e-6, 100.0);
+    v("prior_gyr_bias", prior_gyr_bias, "gyroscope bias prior sigma, rad/s", 1e-6, 100.0);
   }
 };
 

@@ -1,0 +1,145 @@
+// System tests of the Estimator on the synthetic stereo-inertial world (known ground truth, no images).
+#include <cstdio>
+#include <cstdlib>
+
+#include <gtest/gtest.h>
+
+#include "estimator/estimator_test_util.h"
+#include "linnet/core/error.h"
+
+namespace linnet::testing {
+namespace {
+
+void report(const char* name, const RunResult& r) {
+  std::printf("[%s] frames %zu, first pose at %d, APE %.4f m, solve ms median %.2f p95 %.2f max %.2f\n", name,
+              r.outputs.size(), r.first_pose, r.ape_rmse, r.median_ms, r.p95_ms, r.max_ms);
+  if (std::getenv("LINNET_TEST_VERBOSE") != nullptr) {
+    for (std::size_t i = 0; i < r.errors.size(); i += 20) std::printf("  error[%zu] = %.4f m\n", i, r.errors[i]);
+  }
+}
+
+TEST(EstimatorSynthetic, MovingStartInitialisesAndTracksAccurately) {
+  SyntheticOptions so;
+  so.duration_s = 20.0;
+  so.pixel_noise = 0.2;
+  SyntheticVio sim(so);
+  const RunResult r = runEstimator(sim, EstimatorOptions());
+  report("moving", r);
+  ASSERT_GE(r.first_pose, 0);
+  EXPECT_LE(r.first_pose, 20) << "initialised within 1 s of frames";
+  for (std::size_t k = static_cast<std::size_t>(r.first_pose); k < r.outputs.size(); ++k) {
+    EXPECT_TRUE(r.outputs[k].has_pose) << "frame " << k;
+    EXPECT_EQ(r.outputs[k].status, TrackingStatus::kTracking) << "frame " << k;
+  }
+  EXPECT_EQ(r.outputs.back().reinitialisations, 0);
+  EXPECT_LT(r.ape_rmse, 0.02);
+  EXPECT_GT(r.outputs.back().num_points, 30);
+}
+
+TEST(EstimatorSynthetic, NoisyImuStaysAccurate) {
+  SyntheticOptions so;
+  so.duration_s = 20.0;
+  so.imu_noise = true;
+  so.pixel_noise = 0.5;
+  so.seed = 11;
+  SyntheticVio sim(so);
+  const RunResult r = runEstimator(sim, EstimatorOptions());
+  report("noisy", r);
+  ASSERT_GE(r.first_pose, 0);
+  EXPECT_EQ(r.outputs.back().reinitialisations, 0);
+  EXPECT_LT(r.ape_rmse, 0.05);
+  // The accelerometer and gyroscope biases are estimated.
+  const Vec3 bg_err = r.outputs.back().b_g - so.gyr_bias;
+  EXPECT_LT(bg_err.norm(), 2e-3);
+}
+
+TEST(EstimatorSynthetic, StaticStartInitialisesAtOnceFromGravity) {
+  SyntheticOptions so;
+  so.duration_s = 10.0;
+  so.static_s = 2.0;  // at rest for the first second of frames, then a smooth ramp into motion
+  SyntheticVio sim(so);
+  const RunResult r = runEstimator(sim, EstimatorOptions());
+  report("static start", r);
+  ASSERT_EQ(r.first_pose, 0) << "a static start initialises on the first frame";
+  const EstimatorOutput& first = r.outputs.front();
+  EXPECT_LT(first.v_W.norm(), 1e-9);
+  // Roll and pitch from gravity: the body's x axis is up in this world.
+  const Vec3 up_est = first.T_W_B.R().col(0), up_true = sim.truth(first.t).T_W_B.R().col(0);
+  EXPECT_LT(std::acos(std::min(1.0, up_est.dot(up_true))), 0.01);
+  EXPECT_LT((first.b_g - so.gyr_bias).norm(), 1e-3);
+  EXPECT_EQ(r.outputs.back().reinitialisations, 0);
+  EXPECT_LT(r.ape_rmse, 0.02);
+}
+
+TEST(EstimatorSynthetic, TwoRunsAreBitIdentical) {
+  SyntheticOptions so;
+  so.duration_s = 5.0;
+  so.imu_noise = true;
+  SyntheticVio sim(so);
+  EstimatorOptions o;
+  o.solver.max_solver_time_s = 100.0;  // the iteration bound decides, never the clock
+  const RunResult a = runEstimator(sim, o), b = runEstimator(sim, o);
+  ASSERT_EQ(a.outputs.size(), b.outputs.size());
+  for (std::size_t k = 0; k < a.outputs.size(); ++k) {
+    const EstimatorOutput &x = a.outputs[k], &y = b.outputs[k];
+    ASSERT_EQ(x.has_pose, y.has_pose) << k;
+    EXPECT_EQ(x.T_W_B.p, y.T_W_B.p) << k;
+    EXPECT_EQ(x.T_W_B.q.coeffs(), y.T_W_B.q.coeffs()) << k;
+    EXPECT_EQ(x.v_W, y.v_W) << k;
+    EXPECT_EQ(x.b_a, y.b_a) << k;
+    EXPECT_EQ(x.b_g, y.b_g) << k;
+    EXPECT_EQ(x.num_points, y.num_points) << k;
+  }
+}
+
+TEST(EstimatorSynthetic, FailureResetsAndReinitialisesContinuously) {
+  SyntheticOptions so;
+  so.duration_s = 12.0;
+  SyntheticVio sim(so);
+  // Frames 100..104 arrive without any point: too few tracked points -> failure, reset, re-initialisation.
+  const RunResult r = runEstimator(sim, EstimatorOptions(), true, [](int k, FrameObservations* obs) {
+    if (k >= 100 && k < 105) obs->points.clear();
+  });
+  report("failure", r);
+  ASSERT_GE(r.first_pose, 0);
+  EXPECT_GE(r.outputs.back().reinitialisations, 1);
+  bool lost = false;
+  for (std::size_t k = static_cast<std::size_t>(r.first_pose); k < r.outputs.size(); ++k) {
+    EXPECT_TRUE(r.outputs[k].has_pose) << "output continues at frame " << k;
+    lost = lost || r.outputs[k].status == TrackingStatus::kLost;
+  }
+  EXPECT_TRUE(lost);
+  EXPECT_EQ(r.outputs.back().status, TrackingStatus::kTracking);
+  // Continuous: no step larger than the motion between two frames allows (speed < 2 m/s here, 50 ms apart).
+  EXPECT_LT(r.max_step_m, 0.15);
+  EXPECT_LT(r.ape_rmse, 0.10);
+}
+
+TEST(EstimatorSynthetic, MonocularDoesNotCrash) {
+  SyntheticOptions so;
+  so.duration_s = 3.0;
+  so.stereo = false;
+  SyntheticVio sim(so);
+  const RunResult r = runEstimator(sim, EstimatorOptions(), false);
+  EXPECT_EQ(r.outputs.size(), sim.frames().size());
+  for (const EstimatorOutput& o : r.outputs) EXPECT_NE(o.status, TrackingStatus::kLost);
+}
+
+TEST(EstimatorSynthetic, RejectsFramesOutOfOrderAndBadOptions) {
+  Estimator est(EstimatorOptions(), ImuNoise(), eurocTBC0(), eurocTBC1());
+  FrameObservations a;
+  a.t = 1'000'000'000;
+  est.addFrame(a);
+  EXPECT_THROW(est.addFrame(a), UsageError);
+  EstimatorOptions bad;
+  bad.solver.outlier_px = -1.0;
+  try {
+    Estimator e(bad, ImuNoise(), eurocTBC0(), eurocTBC1());
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("estimator.solver.outlier_px"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace linnet::testing
