@@ -3,6 +3,7 @@
 // is itself re-marginalised. Plus the robust-loss correction and the API's error handling.
 #include "linnet/estimator/marginaliser.h"
 
+#include <cstring>
 #include <map>
 #include <memory>
 #include <random>
@@ -399,6 +400,18 @@ TEST(Marginaliser, ApiMisuseThrowsUsageError) {
   } catch (const UsageError& e) {
     EXPECT_NE(std::string(e.what()).find("key 42"), std::string::npos) << e.what();
   }
+}
+
+TEST(Marginaliser, SameInputGivesBitIdenticalPrior) {
+  std::mt19937 rng(25);
+  const LinearProblem lp(rng, {{1, 3}, {2, 3}, {3, 2}, {4, 1}, {5, 1}},
+                         {{1, 2}, {1, 3}, {1, 4}, {1, 5}, {2, 3}, {1}});
+  auto a = marginaliseTerms(lp.terms, lp.x_lin, {1, 4, 5});
+  auto b = marginaliseTerms(lp.terms, lp.x_lin, {1, 4, 5});
+  ASSERT_TRUE(a && b);
+  ASSERT_EQ(a->J.rows(), b->J.rows());
+  EXPECT_EQ(std::memcmp(a->J.data(), b->J.data(), sizeof(double) * static_cast<std::size_t>(a->J.size())), 0);
+  EXPECT_EQ(std::memcmp(a->r.data(), b->r.data(), sizeof(double) * static_cast<std::size_t>(a->r.size())), 0);
 }
 
 TEST(Marginaliser, OptionsValidate) {
