@@ -1,6 +1,7 @@
 // Static gravity alignment and stillness detection.
 #include "linnet/imu/gravity_alignment.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -8,7 +9,7 @@
 
 namespace linnet {
 
-ImuStatistics imuStatistics(const std::vector<ImuSample>& samples) {
+ImuStatistics imuStatistics(const std::vector<ImuSample>& samples, int averaging_samples) {
   ImuStatistics st;
   st.count = static_cast<int>(samples.size());
   if (samples.empty()) return st;
@@ -16,14 +17,32 @@ ImuStatistics imuStatistics(const std::vector<ImuSample>& samples) {
     st.acc_mean += s.acc;
     st.gyr_mean += s.gyr;
   }
-  const double n = static_cast<double>(samples.size());
-  st.acc_mean /= n;
-  st.gyr_mean /= n;
-  if (samples.size() < 2) return st;
+  st.acc_mean /= static_cast<double>(samples.size());
+  st.gyr_mean /= static_cast<double>(samples.size());
+
+  // Block means (the raw samples when averaging_samples == 1).
+  const size_t block = static_cast<size_t>(std::max(1, averaging_samples));
+  const size_t blocks = samples.size() / block;
+  if (blocks < 2) return st;
+  std::vector<Vec3> acc(blocks, Vec3::Zero()), gyr(blocks, Vec3::Zero());
+  Vec3 acc_mean = Vec3::Zero(), gyr_mean = Vec3::Zero();
+  for (size_t b = 0; b < blocks; ++b) {
+    for (size_t k = b * block; k < (b + 1) * block; ++k) {
+      acc[b] += samples[k].acc;
+      gyr[b] += samples[k].gyr;
+    }
+    acc[b] /= static_cast<double>(block);
+    gyr[b] /= static_cast<double>(block);
+    acc_mean += acc[b];
+    gyr_mean += gyr[b];
+  }
+  const double n = static_cast<double>(blocks);
+  acc_mean /= n;
+  gyr_mean /= n;
   Vec3 acc_var = Vec3::Zero(), gyr_var = Vec3::Zero();
-  for (const ImuSample& s : samples) {
-    acc_var += (s.acc - st.acc_mean).cwiseAbs2();
-    gyr_var += (s.gyr - st.gyr_mean).cwiseAbs2();
+  for (size_t b = 0; b < blocks; ++b) {
+    acc_var += (acc[b] - acc_mean).cwiseAbs2();
+    gyr_var += (gyr[b] - gyr_mean).cwiseAbs2();
   }
   st.acc_std = (acc_var / (n - 1.0)).cwiseSqrt();
   st.gyr_std = (gyr_var / (n - 1.0)).cwiseSqrt();
@@ -31,8 +50,9 @@ ImuStatistics imuStatistics(const std::vector<ImuSample>& samples) {
 }
 
 bool isStatic(const std::vector<ImuSample>& samples, const StaticDetectionOptions& options, double gravity) {
-  if (static_cast<int>(samples.size()) < options.min_samples) return false;
-  const ImuStatistics st = imuStatistics(samples);
+  if (static_cast<int>(samples.size()) < std::max(options.min_samples, 2 * options.averaging_samples))
+    return false;
+  const ImuStatistics st = imuStatistics(samples, options.averaging_samples);
   return st.acc_std.maxCoeff() <= options.max_acc_std && st.gyr_std.maxCoeff() <= options.max_gyr_std &&
          st.gyr_mean.norm() <= options.max_gyr_mean &&
          std::abs(st.acc_mean.norm() - gravity) <= options.max_gravity_error;

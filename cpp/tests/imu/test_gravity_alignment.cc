@@ -70,6 +70,27 @@ TEST(StaticDetection, RestIsStaticMotionIsNot) {
   EXPECT_FALSE(isStatic(falling, opt, 9.81));
 }
 
+TEST(StaticDetection, BlockAveragingIgnoresRotorVibration) {
+  // Rest with a 47 Hz vibration (1.5 m/s^2, 0.12 rad/s): raw variances look like flight, block means do not.
+  std::mt19937 rng(8);
+  const ImuNoise noise;
+  const Quat q(Eigen::AngleAxisd(0.1, Vec3::UnitX()));
+  auto samples = restSamples(q, noise, Vec3::Zero(), Vec3(0.0, 0.0, 0.08), rng, 200);
+  for (ImuSample& s : samples) {
+    const double ph = 2.0 * M_PI * 47.0 * toSeconds(s.t);
+    s.acc += Vec3(1.5 * std::sin(ph), 1.0 * std::cos(ph), 0.8 * std::sin(ph + 1.0));
+    s.gyr += Vec3(0.12 * std::cos(ph), 0.08 * std::sin(ph), 0.05 * std::cos(ph + 0.5));
+  }
+  StaticDetectionOptions opt;
+  EXPECT_TRUE(isStatic(samples, opt, 9.81));
+  const ImuStatistics raw = imuStatistics(samples), avg = imuStatistics(samples, opt.averaging_samples);
+  EXPECT_GT(raw.acc_std.maxCoeff(), 0.8);
+  EXPECT_LT(avg.acc_std.maxCoeff(), 0.2);
+  EXPECT_LT(avg.gyr_std.maxCoeff(), 0.03);
+  opt.averaging_samples = 1;
+  EXPECT_FALSE(isStatic(samples, opt, 9.81));
+}
+
 TEST(StaticDetection, StatisticsAreMeanAndSampleStd) {
   std::vector<ImuSample> s = {{0, Vec3(1, 2, 3), Vec3(0, 0, 0)}, {1, Vec3(3, 2, 1), Vec3(0, 0, 2)}};
   const ImuStatistics st = imuStatistics(s);
@@ -77,6 +98,17 @@ TEST(StaticDetection, StatisticsAreMeanAndSampleStd) {
   EXPECT_LT((st.acc_mean - Vec3(2, 2, 2)).norm(), 1e-15);
   EXPECT_LT((st.acc_std - Vec3(std::sqrt(2.0), 0.0, std::sqrt(2.0))).norm(), 1e-15);
   EXPECT_LT((st.gyr_std - Vec3(0.0, 0.0, std::sqrt(2.0))).norm(), 1e-15);
+  // Blocks of two: means (2, 2, 2) and (4, 4, 4) -> std sqrt(2) per axis; the odd fifth sample only enters
+  // the mean.
+  s = {{0, Vec3::Constant(1), Vec3::Zero()},
+       {1, Vec3::Constant(3), Vec3::Zero()},
+       {2, Vec3::Constant(4), Vec3::Zero()},
+       {3, Vec3::Constant(4), Vec3::Zero()},
+       {4, Vec3::Constant(8), Vec3::Zero()}};
+  const ImuStatistics b = imuStatistics(s, 2);
+  EXPECT_EQ(b.count, 5);
+  EXPECT_LT((b.acc_mean - Vec3::Constant(4)).norm(), 1e-15);
+  EXPECT_LT((b.acc_std - Vec3::Constant(std::sqrt(2.0))).norm(), 1e-15);
 }
 
 }  // namespace

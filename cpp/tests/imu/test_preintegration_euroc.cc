@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "linnet/imu/gravity_alignment.h"
 #include "linnet/imu/imu_buffer.h"
 #include "linnet/imu/preintegration.h"
 #include "support/shared_data.h"
@@ -153,6 +154,58 @@ TEST(PreintegrationEuroc, OneSecondWindowsMatchGroundTruth) {
   EXPECT_LT(percentile(e_r, 1.0), 1.0 * M_PI / 180);
   // The biases matter: without them the median error is several times larger.
   EXPECT_GT(percentile(e_p_nobias, 0.5), 3.0 * mp);
+}
+
+TEST(GravityAlignmentEuroc, RestAtTheStartIsStaticAndLevelledLikeTheGroundTruth) {
+  const auto mav = testing::eurocMicroDir() / "mav0";
+  LINNET_REQUIRE_SHARED_DATA(mav / "imu0" / "data.csv");
+  LINNET_REQUIRE_SHARED_DATA(mav / "state_groundtruth_estimate0" / "data.csv");
+  ImuBuffer buffer;
+  for (const CsvRow& r : readCsv(mav / "imu0" / "data.csv", 7))
+    buffer.append({r.t, Vec3(r.v[3], r.v[4], r.v[5]), Vec3(r.v[0], r.v[1], r.v[2])});
+  const std::vector<CsvRow> gt = readCsv(mav / "state_groundtruth_estimate0" / "data.csv", 17);
+  const StaticDetectionOptions opt;
+
+  // First second: the MAV rests on the ground.
+  const ImuState s0 = groundTruthState(gt[0]);
+  const auto rest = buffer.samplesBetween(s0.t, s0.t + 1'000'000'000);
+  const ImuStatistics raw = imuStatistics(rest);
+  const ImuStatistics st = imuStatistics(rest, opt.averaging_samples);
+  std::printf(
+      "  EuRoC V1_01 first 1 s (rotors on): raw std acc %.3f m/s^2 gyr %.4f rad/s; block-mean std acc "
+      "%.3f m/s^2 gyr %.4f rad/s; |acc mean| %.3f m/s^2\n",
+      raw.acc_std.maxCoeff(), raw.gyr_std.maxCoeff(), st.acc_std.maxCoeff(), st.gyr_std.maxCoeff(),
+      st.acc_mean.norm());
+  EXPECT_TRUE(isStatic(rest, opt, 9.81));
+  // The raw variances alone cannot tell this rest from flight.
+  StaticDetectionOptions raw_opt = opt;
+  raw_opt.averaging_samples = 1;
+  EXPECT_FALSE(isStatic(rest, raw_opt, 9.81));
+  // Gravity alignment with the ground-truth accelerometer bias removed: tilt vs the ground truth, whose world
+  // frame is itself ~0.23 deg off gravity (see OneSecondWindowsMatchGroundTruth).
+  const Quat q = gravityAlignedRotation(st.acc_mean - s0.b_a);
+  const Vec3 z_est = q.conjugate() * Vec3::UnitZ(), z_gt = s0.T_W_B.q.conjugate() * Vec3::UnitZ();
+  const double tilt_deg = std::acos(std::min(1.0, z_est.dot(z_gt))) * 180.0 / M_PI;
+  std::printf("  gravity alignment at rest: tilt vs ground truth %.3f deg\n", tilt_deg);
+  EXPECT_LT(tilt_deg, 0.5);
+  EXPECT_NEAR(yawOf(q), 0.0, 1e-12);
+
+  // In flight (the ground truth moves faster than 0.3 m/s): not static.
+  int moving_windows = 0, flagged_static = 0;
+  double min_gyr_std = 1e9;
+  for (size_t i = 0; i + 20 < gt.size(); i += 40) {
+    const ImuState s = groundTruthState(gt[i]);
+    if (s.v_W.norm() < 0.3) continue;
+    ++moving_windows;
+    const auto window = buffer.samplesBetween(s.t, groundTruthState(gt[i + 20]).t);
+    min_gyr_std = std::min(min_gyr_std, imuStatistics(window, opt.averaging_samples).gyr_std.maxCoeff());
+    if (isStatic(window, opt, 9.81)) ++flagged_static;
+  }
+  std::printf(
+      "  in flight: %d of %d one-second windows flagged static (smallest block-mean gyr std %.4f rad/s)\n",
+      flagged_static, moving_windows, min_gyr_std);
+  EXPECT_GT(moving_windows, 20);
+  EXPECT_EQ(flagged_static, 0);
 }
 
 }  // namespace
