@@ -28,6 +28,22 @@ double threadCpuMs() {
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
+// True when `seg` lies on one of the tracks (same direction within 5 degrees, both endpoints within 3 px of its
+// line, overlapping it): a second detection of a tracked edge must not start a new id.
+bool duplicatesTrack(const LineSegment& seg, const std::vector<LineTracker::Track>& tracks) {
+  const Vec2 d = seg.direction();
+  for (const LineTracker::Track& t : tracks) {
+    const Vec2 td = t.px.direction();
+    if (std::abs(td.dot(d)) < 0.996) continue;
+    const Vec2 n(-td.y(), td.x());
+    if (std::abs((seg.s - t.px.s).dot(n)) > 3.0 || std::abs((seg.e - t.px.s).dot(n)) > 3.0) continue;
+    const double a = (seg.s - t.px.s).dot(td), b = (seg.e - t.px.s).dot(td);
+    if (std::max(a, b) < -5.0 || std::min(a, b) > t.px.length() + 5.0) continue;
+    return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 LineTracker::LineTracker(const LineTrackerOptions& options, const CameraModel& cam0, const CameraModel* cam1,
@@ -153,6 +169,7 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     if (cell_new[c] >= options_.max_new_per_cell) continue;
     ++cell_new[c];
     if (segs_l_[i].length() < options_.min_new_length_px) continue;
+    if (duplicatesTrack(segs_l_[i], next)) continue;
     next.push_back(Track{next_id_++, segs_l_[i], desc_l_[i], 1, 0});
     ++tm.new_lines;
   }
