@@ -276,7 +276,7 @@ struct MoreTypes {
     v("ids", ids, "");
     v("names", names, "");
     v("K", K, "");
-    v("count", count, "", 0u, 10u);
+    v("count", count, "", 0, 10);  // int bounds on an unsigned field: no sign-compare warning
   }
 };
 

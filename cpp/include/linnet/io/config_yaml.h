@@ -17,6 +17,7 @@
 #include <initializer_list>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <yaml-cpp/yaml.h>
@@ -46,7 +47,7 @@ class YamlOptionsReader {
     T v = value;
     const yaml::Context ctx = context(key);
     yaml::decode(n, ctx, v);
-    if (!(v >= lo && v <= hi))
+    if (!(lessEqual(lo, v) && lessEqual(v, hi)))
       ctx.fail(n, "= " + n.Scalar() + " is out of range [" + number(lo) + ", " + number(hi) + "]");
     value = v;
   }
@@ -76,6 +77,14 @@ class YamlOptionsReader {
       return io::formatDouble(static_cast<double>(x));
     else
       return std::to_string(x);
+  }
+  /// a <= b without sign-compare surprises (unsigned field, int bounds); false if either is NaN.
+  template <class A, class B>
+  static bool lessEqual(A a, B b) {
+    if constexpr (std::is_integral_v<A> && std::is_integral_v<B>)
+      return std::cmp_less_equal(a, b);
+    else
+      return a <= b;
   }
 
   YAML::Node node_;
