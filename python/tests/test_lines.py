@@ -195,3 +195,15 @@ def test_lines_and_bench_commands(tmp_path):
     assert out["stages_ms"]["total_ms"]["median"] > 0
     res = runner.invoke(cli, ["lines", str(micro), "--out", str(tmp_path / "x"), "--frames", "9:2"])
     assert res.exit_code != 0
+
+
+def test_segment_labels_accept_parallel_true_edges_closer_than_the_tolerance():
+    # Two true edges 1.5 px apart (the front and back edge of a thin frame) and one far away.
+    gt = [(7, _poly((0, 0), (100, 0))), (8, _poly((0, 1.5), (100, 1.5))), (9, _poly((0, 40), (100, 40)))]
+    assert lines.segment_labels([10, 0.2, 90, 0.2], gt) == {7, 8}
+    assert lines.segment_labels([10, 1.4, 90, 1.4], gt) == {7, 8}
+    assert lines.segment_labels([10, 40, 90, 40.5], gt) == {9}
+    assert lines.segment_labels([10, 20, 90, 20], gt) == set()
+    assert lines._judge({7, 8}, {8}) == (1, 1)
+    assert lines._judge({7}, {9}) == (0, 1)
+    assert lines._judge(set(), {9}) == (0, 0)
