@@ -39,7 +39,8 @@ PointTracker::PointTracker(const PointTrackerOptions& options, const CameraModel
                            const Pose& T_C1_C0)
     : opt_(options), cam0_(cam0), cam1_(cam1), T_C1_C0_(T_C1_C0) {
   validateOptions(opt_, "points");
-  if (opt_.clahe) clahe_ = cv::createCLAHE(opt_.clahe_clip_limit, cv::Size(opt_.clahe_tiles, opt_.clahe_tiles));
+  if (opt_.clahe || opt_.stereo_clahe)
+    clahe_ = cv::createCLAHE(opt_.clahe_clip_limit, cv::Size(opt_.clahe_tiles, opt_.clahe_tiles));
 }
 
 PointTracker::~PointTracker() = default;
@@ -70,14 +71,10 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
   stats_.previous = static_cast<int>(tracks_.size());
 
   // Never write into the caller's images: the preprocessed copies are fresh buffers.
-  cv::Mat left = left_in, right = right_in;
-  if (clahe_) {
+  cv::Mat left = left_in;
+  if (opt_.clahe) {
     left = cv::Mat();
     clahe_->apply(left_in, left);
-    if (use_right) {
-      right = cv::Mat();
-      clahe_->apply(right_in, right);
-    }
   }
   const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
   cv::buildOpticalFlowPyramid(left, pyr_cur_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
@@ -87,22 +84,37 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
   replenish(left);
 
   if (use_right) {
+    // Stereo runs on its own copies: CLAHE on both (stereo_clahe) when the temporal tracker works on raw images.
+    cv::Mat sl = left, sr = right_in;
+    const std::vector<cv::Mat>* pyr_left = &pyr_cur_;
+    if (opt_.stereo_clahe && !opt_.clahe) {
+      sl = cv::Mat();
+      sr = cv::Mat();
+      clahe_->apply(left_in, sl);
+      clahe_->apply(right_in, sr);
+      cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+                                  cv::BORDER_CONSTANT, false);
+      pyr_left = &pyr_left_stereo_;
+    } else if (opt_.clahe) {
+      sr = cv::Mat();
+      clahe_->apply(right_in, sr);
+    }
     if (opt_.stereo_gain_compensation) {
       // KLT assumes equal brightness; the two cameras' gains differ (EuRoC: ~10%). Affine map of the right image's
       // mean and standard deviation onto the left's.
-      cv::Scalar ml, sl, mr, sr;
-      cv::meanStdDev(left, ml, sl);
-      cv::meanStdDev(right, mr, sr);
-      if (sr[0] > 1.0 && sl[0] > 1.0) {
-        const double alpha = sl[0] / sr[0];
+      cv::Scalar ml, dl, mr, dr;
+      cv::meanStdDev(sl, ml, dl);
+      cv::meanStdDev(sr, mr, dr);
+      if (dr[0] > 1.0 && dl[0] > 1.0) {
+        const double alpha = dl[0] / dr[0];
         cv::Mat adjusted;
-        right.convertTo(adjusted, CV_8U, alpha, ml[0] - alpha * mr[0]);
-        right = adjusted;
+        sr.convertTo(adjusted, CV_8U, alpha, ml[0] - alpha * mr[0]);
+        sr = adjusted;
       }
     }
-    cv::buildOpticalFlowPyramid(right, pyr_right_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+    cv::buildOpticalFlowPyramid(sr, pyr_right_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
                                 cv::BORDER_CONSTANT, false);
-    matchStereo();
+    matchStereo(*pyr_left);
   } else {
     for (Track& tr : tracks_) tr.has_right = tr.right_prior = false;
   }
@@ -276,7 +288,7 @@ void PointTracker::replenish(const cv::Mat& image) {
   }
 }
 
-void PointTracker::matchStereo() {
+void PointTracker::matchStereo(const std::vector<cv::Mat>& pyr_left) {
   std::vector<std::size_t> idx;
   std::vector<cv::Point2f> px0, prior;
   std::vector<Vec2> uv0;
@@ -306,7 +318,7 @@ void PointTracker::matchStereo() {
   sp.border_px = opt_.border_px;
   StereoPointStats ss;
   const std::vector<StereoPointResult> res =
-      matchStereoPoints(pyr_cur_, pyr_right_, cam0_, *cam1_, T_C1_C0_, px0, uv0, &prior, sp, &ss);
+      matchStereoPoints(pyr_left, pyr_right_, cam0_, *cam1_, T_C1_C0_, px0, uv0, &prior, sp, &ss);
   for (std::size_t k = 0; k < idx.size(); ++k) {
     Track& tr = tracks_[idx[k]];
     tr.has_right = res[k].ok;

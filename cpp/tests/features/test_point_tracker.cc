@@ -122,9 +122,9 @@ TEST(PointTracker, EurocMicroTracksStereoAndDepths) {
   EXPECT_GE(min_count, 100);
   EXPECT_GE(median(lengths_all), 20.0);
   // The bottom of cam1's view is hidden by the MAV's body and a strip at the left of cam0 lies outside cam1's view:
-  // the per-frame share has a floor near 0.55; the mean is the figure.
+  // with CLAHE on the stereo copies the share stays just above 0.6 in every frame (0.61 - 0.66).
   EXPECT_GE(mean_stereo_ratio, 0.6);
-  EXPECT_GE(min_stereo_ratio, 0.5);
+  EXPECT_GE(min_stereo_ratio, 0.6);
   EXPECT_GE(static_cast<double>(in_range) / depths.size(), 0.98);
   // The MAV sits on the floor ~2 m from a corner of mattresses: the median depth is ~2.2 m.
   EXPECT_GT(median(depths), 1.0);
