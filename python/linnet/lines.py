@@ -317,8 +317,9 @@ def visible_polylines(lines_W: np.ndarray, cam, T_W_C: np.ndarray, depth: np.nda
     run of samples that is in front of the camera, inside the image and not behind the rendered surface (depth of
     the 3x3 neighbourhood's nearest surface >= the sample's depth minus depth_tol relative), longer than min_length_px.
     With `radiance` (the noise-free rendering) and min_contrast > 0, a sample also needs an edge there: the grey
-    levels 2 px to either side across the line differ by at least min_contrast (an edge between two surfaces of the
-    same shade is in the scene but not in the image).
+    levels 2 px to either side across the line differ by at least min_contrast, or the line's own grey level differs
+    from their mean by that much (a thin band); an edge between two surfaces of the same shade is in the scene but
+    not in the image.
     """
     from linnet.sim.rig import project
 
@@ -353,7 +354,9 @@ def visible_polylines(lines_W: np.ndarray, cam, T_W_C: np.ndarray, depth: np.nda
             qy = np.clip(np.nan_to_num(np.round(q[..., 1])), 0, h - 1).astype(int)
             return radiance[qy, qx].astype(np.float64)
 
-        contrast = np.abs(grey(px + 2.0 * nrm) - grey(px - 2.0 * nrm))
+        above, centre, below = grey(px + 2.0 * nrm), grey(px), grey(px - 2.0 * nrm)
+        # A step edge (the two sides differ) or a thin band (the centre differs from both sides, e.g. grout lines).
+        contrast = np.maximum(np.abs(above - below), np.abs(centre - 0.5 * (above + below)))
         visible &= contrast >= min_contrast
     out = []
     for i in np.flatnonzero(visible.any(axis=1)):
@@ -419,6 +422,7 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
     stereo = [0, 0]
     prev_label: dict[int, set] = {}
     final_length: dict[int, int] = {}
+    delivered_length: list[int] = []
     per_frame = {"lines": [], "stereo": [], "total_ms": [], "cpu_total_ms": [], "cpu_left_ms": []}
     n = len(rp.cam_t)
     for k, t in enumerate(rp.cam_t):
@@ -455,6 +459,7 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
                 stereo[0] += c_
                 stereo[1] += j_
             final_length[i] = int(obs["track_length"][j])
+            delivered_length.append(int(obs["track_length"][j]))
         prev_label = labels_now
         per_frame["lines"].append(len(obs["id"]))
         per_frame["stereo"].append(int(obs["has_right"].sum()))
@@ -471,6 +476,8 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
         "temporal_precision": temporal[0] / max(1, temporal[1]), "temporal_judged": temporal[1],
         "stereo_precision": stereo[0] / max(1, stereo[1]), "stereo_judged": stereo[1],
         "median_track_length_per_id": float(np.median(lengths)) if lengths else 0.0,
+        "median_track_length_delivered": float(np.median(delivered_length)) if delivered_length else 0.0,
+        "ids": len(lengths),
         "median_lines_per_frame": float(np.median(per_frame["lines"])),
         "median_stereo_per_frame": float(np.median(per_frame["stereo"])),
         "timing_ms": percentile_table({k: per_frame[k] for k in ("total_ms", "cpu_total_ms", "cpu_left_ms")}),

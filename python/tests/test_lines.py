@@ -207,3 +207,25 @@ def test_segment_labels_accept_parallel_true_edges_closer_than_the_tolerance():
     assert lines._judge({7, 8}, {8}) == (1, 1)
     assert lines._judge({7}, {9}) == (0, 1)
     assert lines._judge(set(), {9}) == (0, 0)
+
+
+def test_bench_lines_on_the_simulator(tmp_path):
+    _core()
+    traj = Path(os.environ.get("LINNET_SHARED_DATA", REPO.parent / "shared" / "data")) / "euroc_groundtruth" / \
+        "V1_02_medium.txt"
+    if not traj.is_file():
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"shared data missing: {traj}")
+        pytest.skip(f"shared data missing: {traj}")
+    from click.testing import CliRunner
+
+    from linnet.cli import cli
+
+    res = CliRunner().invoke(cli, ["bench", "lines", "--sim", "room", "--trajectory", str(traj), "--duration", "1",
+                                   "--json", str(tmp_path / "s.json")])
+    assert res.exit_code == 0, res.output
+    out = json.loads((tmp_path / "s.json").read_text())
+    assert out["frames"] >= 20
+    assert out["temporal_judged"] > 100 and out["stereo_judged"] > 100
+    assert out["temporal_precision"] >= 0.95 and out["stereo_precision"] >= 0.95
+    assert 0.2 <= out["detection_recall"] <= 1.0

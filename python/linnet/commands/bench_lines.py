@@ -58,16 +58,53 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
     }
 
 
+def _default_trajectory() -> Path:
+    import os
+
+    root = Path(os.environ.get("LINNET_SHARED_DATA", Path(__file__).resolve().parents[3].parent / "shared" / "data"))
+    return root / "euroc_groundtruth" / "V1_02_medium.txt"
+
+
 @click.command("lines")
-@click.argument("dataset", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.argument("dataset", required=False, type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the results as JSON.")
 @click.option("--frames", default=None, help="Frame range A:B (Python slice).")
 @click.option("--detector", type=click.Choice(["edlines", "fld", "lsd"]), default=None, help="Line detector.")
 @click.option("--repeat", type=int, default=1, show_default=True, help="Passes over the frames (timings pooled).")
 @click.option("--mono", is_flag=True, help="Ignore cam1.")
-def COMMAND(dataset, json_out, frames, detector, repeat, mono):
-    """Benchmark the line front-end on DATASET: per-stage median / p95 ms, counts and track lengths."""
+@click.option("--sim", "sim_scene", default=None,
+              help="Instead of DATASET: score against the simulator's true lines on this scene (e.g. lowtex, room).")
+@click.option("--trajectory", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="With --sim: the replayed trajectory (default: shared data's V1_02_medium ground truth).")
+@click.option("--duration", type=float, default=30.0, show_default=True, help="With --sim: seconds replayed.")
+def COMMAND(dataset, json_out, frames, detector, repeat, mono, sim_scene, trajectory, duration):
+    """Benchmark the line front-end on DATASET: per-stage median / p95 ms, counts and track lengths.
+    With --sim SCENE: detection recall, temporal / stereo precision and track length against ground truth."""
     from linnet import lines
+
+    if sim_scene is not None:
+        traj = trajectory or _default_trajectory()
+        if not Path(traj).is_file():
+            raise click.BadParameter(f"{traj}: not found", param_hint="--trajectory")
+        opts = {"detection.detector": detector} if detector else {}
+        if detector == "lsd":
+            opts["detection.downsample"] = 1
+        res = lines.score_sim(str(traj), sim_scene, duration=duration, options=opts)
+        click.echo(f"simulated {sim_scene} on {Path(traj).name}, {res['frames']} frames ({duration:g} s)")
+        click.echo(f"detection recall {res['detection_recall']:.3f} of {res['gt_segments_considered']} visible "
+                   f"segments > 40 px (unoccluded, contrast >= {res['min_contrast']:g}); "
+                   f"{res['detection_recall_unoccluded']:.3f} of all {res['gt_segments_unoccluded']} unoccluded")
+        click.echo(f"temporal precision {res['temporal_precision']:.4f} ({res['temporal_judged']} judged), stereo "
+                   f"precision {res['stereo_precision']:.4f} ({res['stereo_judged']} judged)")
+        click.echo(f"median track length {res['median_track_length_per_id']:.0f} per id, "
+                   f"{res['median_track_length_delivered']:.0f} for the delivered lines; "
+                   f"{res['median_lines_per_frame']:.0f} lines / frame, {res['median_stereo_per_frame']:.0f} stereo")
+        if json_out:
+            json_out.parent.mkdir(parents=True, exist_ok=True)
+            json_out.write_text(json.dumps(res, indent=2) + "\n", encoding="utf-8")
+        return
+    if dataset is None:
+        raise click.UsageError("give DATASET or --sim SCENE")
 
     opts = {}
     if detector:
