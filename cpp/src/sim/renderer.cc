@@ -198,6 +198,24 @@ Renderer::RayGrid Renderer::makeGrid(const CameraModel& camera, int ss) {
       float* box = &g.tile_box[static_cast<std::size_t>(ty * g.tiles_x + tx) * 4];
       box[0] = x0, box[1] = x1, box[2] = y0, box[3] = y1;  // empty tile: x0 > x1, never overlaps
     }
+  g.col_box.assign(static_cast<std::size_t>(g.tiles_x) * 2, 0.0f);
+  g.row_box.assign(static_cast<std::size_t>(g.tiles_y) * 2, 0.0f);
+  for (int tx = 0; tx < g.tiles_x; ++tx) {
+    float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
+    for (int ty = 0; ty < g.tiles_y; ++ty) {
+      const float* box = &g.tile_box[static_cast<std::size_t>(ty * g.tiles_x + tx) * 4];
+      if (box[0] <= box[1]) lo = std::min(lo, box[0]), hi = std::max(hi, box[1]);
+    }
+    g.col_box[static_cast<std::size_t>(2 * tx)] = lo, g.col_box[static_cast<std::size_t>(2 * tx + 1)] = hi;
+  }
+  for (int ty = 0; ty < g.tiles_y; ++ty) {
+    float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
+    for (int tx = 0; tx < g.tiles_x; ++tx) {
+      const float* box = &g.tile_box[static_cast<std::size_t>(ty * g.tiles_x + tx) * 4];
+      if (box[2] <= box[3]) lo = std::min(lo, box[2]), hi = std::max(hi, box[3]);
+    }
+    g.row_box[static_cast<std::size_t>(2 * ty)] = lo, g.row_box[static_cast<std::size_t>(2 * ty + 1)] = hi;
+  }
   g.samples_per_unit = 0.5 * (camera.fx() + camera.fy()) * ss;
   return g;
 }
@@ -212,6 +230,9 @@ void Renderer::rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& g
   const Mat3 R_C_W = T_W_C.R().transpose();
   const Vec3 p_W_C = T_W_C.p;
   const auto& quads = scene.quads();
+  std::vector<int> cols, rows;
+  cols.reserve(static_cast<std::size_t>(g.tiles_x));
+  rows.reserve(static_cast<std::size_t>(g.tiles_y));
   for (std::size_t qi = 0; qi < quads.size(); ++qi) {
     const Quad& q = quads[qi];
     const Vec3 o = R_C_W * (q.origin - p_W_C);
@@ -281,8 +302,17 @@ void Renderer::rasterise(const Scene& scene, const Pose& T_W_C, const RayGrid& g
     raster->prepared[qi] = pq;
     raster->visible.push_back(pq.index);
 
+    // Candidate tiles: the columns and rows of tiles whose ray bounds overlap the polygon's bounding box.
+    cols.clear();
+    rows.clear();
+    for (int tx = 0; tx < g.tiles_x; ++tx)
+      if (g.col_box[static_cast<std::size_t>(2 * tx + 1)] >= pq.xmin && g.col_box[static_cast<std::size_t>(2 * tx)] <= pq.xmax)
+        cols.push_back(tx);
     for (int ty = 0; ty < g.tiles_y; ++ty)
-      for (int tx = 0; tx < g.tiles_x; ++tx) {
+      if (g.row_box[static_cast<std::size_t>(2 * ty + 1)] >= pq.ymin && g.row_box[static_cast<std::size_t>(2 * ty)] <= pq.ymax)
+        rows.push_back(ty);
+    for (const int ty : rows)
+      for (const int tx : cols) {
         const float* box = &g.tile_box[static_cast<std::size_t>(ty * g.tiles_x + tx) * 4];
         if (box[1] < pq.xmin || box[0] > pq.xmax || box[3] < pq.ymin || box[2] > pq.ymax) continue;
         bool outside = false, inside = true;
@@ -392,8 +422,13 @@ cv::Mat Renderer::expose(const cv::Mat& radiance, double gain, std::uint64_t see
   if (radiance.type() != CV_32FC1 || radiance.cols != width_ || radiance.rows != height_)
     throw UsageError("sim::Renderer::expose: radiance must be CV_32FC1 of the camera's size");
   cv::Mat out(height_, width_, CV_8UC1);
-  const float read2 = static_cast<float>(options_.read_noise * options_.read_noise);
-  const float shot = static_cast<float>(options_.shot_noise);
+  // Noise std as a function of the exposed grey level, tabulated in steps of 1/4 grey level up to 4 x 255.
+  constexpr int kLutScale = 4;
+  constexpr int kLutSize = 4 * 256 * kLutScale;
+  std::vector<float> sigma_lut(kLutSize);
+  for (int k = 0; k < kLutSize; ++k)
+    sigma_lut[static_cast<std::size_t>(k)] = static_cast<float>(
+        std::sqrt(options_.read_noise * options_.read_noise + options_.shot_noise * (k + 0.5) / kLutScale));
   const float g = static_cast<float>(gain);
   const std::uint64_t key = mix64(seed ^ 0x5EED5EED12345678ULL);
   for (int r = 0; r < height_; ++r) {
@@ -402,9 +437,10 @@ cv::Mat Renderer::expose(const cv::Mat& radiance, double gain, std::uint64_t see
     for (int c = 0; c < width_; ++c) {
       const std::size_t i = static_cast<std::size_t>(r * width_ + c);
       const float val = src[c] * g * vignette_[i];
-      const float sigma = std::sqrt(read2 + shot * std::max(0.0f, val));
+      const int k = std::clamp(static_cast<int>(val * kLutScale), 0, kLutSize - 1);
+      const float sigma = sigma_lut[static_cast<std::size_t>(k)];
       const float noisy = val + sigma * gaussFromBits(mix64(key + i));
-      dst[c] = static_cast<std::uint8_t>(std::clamp(std::lround(noisy), 0L, 255L));
+      dst[c] = static_cast<std::uint8_t>(std::clamp(noisy, 0.0f, 255.0f) + 0.5f);  // round half up, non-negative
     }
   }
   return out;

@@ -80,6 +80,8 @@ class Renderer {
     int tile = 16;                   // tile edge, samples
     int tiles_x = 0, tiles_y = 0;
     std::vector<float> tile_box;     // per tile: xmin, xmax, ymin, ymax
+    std::vector<float> col_box;      // per column of tiles: xmin, xmax (union over its tiles)
+    std::vector<float> row_box;      // per row of tiles: ymin, ymax
     float xmin = 0, xmax = 0, ymin = 0, ymax = 0;  // bounds of all samples
     double samples_per_unit = 1.0;   // samples per unit of normalised coordinate (~ f * ss), for mip selection
   };
