@@ -107,6 +107,8 @@ void Preintegration::integrateStep(const ImuSample& s0, const ImuSample& s1) {
       Vec3::Constant(var_ba), Vec3::Constant(var_bg);
 
   covariance_ = F * covariance_ * F.transpose() + G * q.asDiagonal() * G.transpose();
+  covariance_.block<3, 3>(kP, kP).diagonal().array() +=
+      options_.integration_noise * options_.integration_noise * dt;
   covariance_ = 0.5 * (covariance_ + covariance_.transpose()).eval();
   jacobian_ = F * jacobian_;
 

@@ -113,6 +113,36 @@ TEST(ImuFactor, JacobiansPassTheCheckerAtRandomStates) {
   std::printf("  ImuFactor Jacobians: worst relative error over 10 random states %.3g\n", worst);
 }
 
+TEST(ImuFactor, JacobiansPassTheCheckerOnShortIntervalsNearTheSolution) {
+  // One IMU step (5 ms) and one camera frame (50 ms): information up to ~1e8, states near the true motion as
+  // in a running estimator.
+  const testing::SmoothMotion m;
+  const ImuNoise noise;
+  std::mt19937 rng(77);
+  std::normal_distribution<double> n(0.0, 1.0);
+  auto rnd3 = [&](double s) { return Vec3(s * n(rng), s * n(rng), s * n(rng)); };
+  const PoseManifold pm;
+  const Vec3 b_a(0.08, -0.05, 0.02), b_g(0.01, -0.004, 0.006);
+  for (const Timestamp duration : {5 * kMs, 50 * kMs}) {
+    const Timestamp t0 = 250 * kMs, t1 = t0 + duration;
+    const auto pre = std::make_shared<Preintegration>(m.samples(t0, t1, 5 * kMs, b_a, b_g), noise,
+                                                      b_a + rnd3(0.02), b_g + rnd3(0.002));
+    const ImuFactor f(pre, noise.gravityVector());
+    // Perturbations scaled with the interval keep the whitened residual moderate (central differences lose
+    // ~eps |r| / h to round-off, so a residual of 1e7 would swamp any check).
+    const double scale = toSeconds(duration) / 0.05;
+    const Vec3 b_a_i = b_a + rnd3(0.01), b_g_i = b_g + rnd3(0.001);
+    ImuState si = m.state(t0, b_a_i, b_g_i), sj = m.state(t1, b_a_i, b_g_i);
+    sj.T_W_B = Pose(sj.T_W_B.q * expSO3(rnd3(1e-3 * scale)), sj.T_W_B.p + rnd3(1e-3 * scale * scale));
+    sj.v_W += rnd3(1e-3 * scale);
+    Blocks b = blocksFrom(si, sj);
+    const auto res = testing::checkJacobians(f, b.ptrs(), {&pm, nullptr, &pm, nullptr}, 1e-6);
+    std::printf("  ImuFactor over %.0f ms: worst relative Jacobian error %.3g (|whitened r| %.3g)\n",
+                toSeconds(duration) * 1e3, res.maxRelError(), res.residuals.norm());
+    EXPECT_TRUE(res.ok(1e-5)) << res.describe(1e-5, true);
+  }
+}
+
 TEST(ImuFactor, SolvesForTheSecondStateGivenTheFirst) {
   const testing::SmoothMotion m;
   const ImuNoise noise;
@@ -157,8 +187,10 @@ TEST(ImuFactor, RejectsEmptyPreintegration) {
   EXPECT_THROW(ImuFactor(std::shared_ptr<const Preintegration>(), 9.81), UsageError);
   ImuNoise silent;
   silent.acc_noise_density = silent.gyr_noise_density = silent.acc_random_walk = silent.gyr_random_walk = 0.0;
+  PreintegrationOptions no_integration_noise;
+  no_integration_noise.integration_noise = 0.0;
   const Preintegration zero({{0, Vec3(0, 0, 9.81), Vec3::Zero()}, {5 * kMs, Vec3(0, 0, 9.81), Vec3::Zero()}},
-                            silent, Vec3::Zero(), Vec3::Zero());
+                            silent, Vec3::Zero(), Vec3::Zero(), no_integration_noise);
   EXPECT_THROW(ImuFactor(zero, silent.gravityVector()), UsageError);
 }
 

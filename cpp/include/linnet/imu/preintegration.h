@@ -35,9 +35,15 @@ namespace linnet {
 struct PreintegrationOptions {
   double max_acc_bias_change = 0.25;  // m/s^2: biasMovedFar() when |b_a - b_a_lin| exceeds this
   double max_gyr_bias_change = 0.02;  // rad/s: biasMovedFar() when |b_g - b_g_lin| exceeds this
+  // m/sqrt(s): position random walk added per step (variance sigma^2 dt) for integration / model error, as
+  // GTSAM's integrationCovariance. Without it, alpha and beta of a one- or two-step preintegration are almost
+  // perfectly correlated and the IMU factor's information reaches ~1e20 in that direction.
+  double integration_noise = 1e-5;
 
   template <class V>
   void visit(V& v) {
+    v("integration_noise", integration_noise, "position random walk for integration error, m/sqrt(s)", 0.0,
+      1.0);
     v("max_acc_bias_change", max_acc_bias_change,
       "accelerometer bias change that triggers repropagation, m/s^2", 0.0, 10.0);
     v("max_gyr_bias_change", max_gyr_bias_change, "gyroscope bias change that triggers repropagation, rad/s",
