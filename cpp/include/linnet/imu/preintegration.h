@@ -18,8 +18,9 @@
 //
 // Noise (ImuNoise: continuous densities sigma): the midpoint average of two readings is treated as one
 // reading of the continuous white noise, so each end is given variance 2 sigma^2 / dt (the average then has
-// sigma^2 / dt, which integrates to the continuous-time sigma^2 T over the interval); bias random walks add
-// sigma_b^2 dt per step.
+// sigma^2 / dt, which integrates to the continuous-time sigma^2 T over the interval; checked against Monte
+// Carlo in test_preintegration.cc); bias random walks add sigma_b^2 dt per step, and
+// PreintegrationOptions::integration_noise adds a small position random walk.
 //
 // The raw samples are kept: repropagate() re-integrates them at new linearisation biases and append() merges
 // the next preintegration (which must start where this one ends) when a non-keyframe is dropped.
