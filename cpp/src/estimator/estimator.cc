@@ -289,8 +289,12 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
       out.b_g = s.b_g;
       return finish(out);
     }
-    if (imu_.empty() || !imu_.covers(imu_.startTime(), obs.t) || obs.t - imu_.startTime() < fromSeconds(0.05))
-      return finish(out);  // not enough IMU before the first frame yet
+    // The stillness test and gravity alignment need IMU history before the frame: wait (a few frames at most)
+    // until there is gravity_window_s of it, or at least enough samples for the stillness test.
+    const double needed_s = std::min(options_.init.gravity_window_s,
+                                     (options_.init.at_rest.min_samples + 1) / noise_.rate_hz);
+    if (imu_.empty() || !imu_.covers(imu_.startTime(), obs.t) || toSeconds(obs.t - imu_.startTime()) < needed_s)
+      return finish(out);
     bool is_static = false;
     const NavState s = firstState(obs.t, &is_static);
     if (startWindow(obs, s, is_static ? options_.init.prior_velocity_static : 0.0)) {

@@ -83,8 +83,8 @@ struct FailureOptions {
 
 /// Back-end solver and measurement model.
 struct SolverOptions {
-  int max_num_iterations = 8;        // Ceres iterations per frame
-  double max_solver_time_s = 0.2;    // Ceres wall-time bound per frame, s (must not bind for bit-identical runs)
+  int max_num_iterations = 5;        // Ceres iterations per frame (the IMU prediction is a good start)
+  double max_solver_time_s = 0.5;    // Ceres wall-time bound per frame, s (must not bind for bit-identical runs)
   std::string trust_region = "dogleg";   // "levenberg_marquardt" | "dogleg"
   std::string linear_solver = "dense_schur";  // "dense_schur" | "sparse_normal_cholesky"
   double focal_length = 460.0;       // pixels per normalised unit: sqrt_info = focal_length / pixel_sigma
