@@ -128,8 +128,16 @@ int selectMutualBest(int n_a, int n_b, const std::vector<LineMatchCandidate>& ca
 int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSegment>& prev,
                   const std::vector<LbdDescriptor>& prev_desc, const std::vector<LineSegment>& cur,
                   const std::vector<LbdDescriptor>& cur_desc, const Vec2& centre, std::vector<int>* match_of_cur) {
-  if (prev.size() != prev_desc.size() || cur.size() != cur_desc.size())
-    throw UsageError("matchTemporal: segments and descriptors differ in size");
+  if (cur.size() != cur_desc.size()) throw UsageError("matchTemporal: segments and descriptors differ in size");
+  return matchTemporal(options, prev, prev_desc, cur, [&](int i) -> const LbdDescriptor& { return cur_desc[i]; },
+                       centre, match_of_cur);
+}
+
+int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSegment>& prev,
+                  const std::vector<LbdDescriptor>& prev_desc, const std::vector<LineSegment>& cur,
+                  const std::function<const LbdDescriptor&(int)>& cur_desc, const Vec2& centre,
+                  std::vector<int>* match_of_cur) {
+  if (prev.size() != prev_desc.size()) throw UsageError("matchTemporal: segments and descriptors differ in size");
   const double cos_max = std::cos(options.max_angle_deg * kDegToRad);
   const double shift2 = options.max_shift_px * options.max_shift_px;
   std::vector<LineMatchCandidate> cands;
@@ -143,7 +151,7 @@ int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSeg
       if (dp.dot(dc) < cos_max) continue;
       const double lp = p.length();
       if (overlapRatio(0.0, lp, (c.s - p.s).dot(dp), (c.e - p.s).dot(dp)) < options.min_overlap) continue;
-      const int dist = hammingDistance(cur_desc[i], prev_desc[j]);
+      const int dist = hammingDistance(cur_desc(i), prev_desc[j]);
       if (dist > options.max_hamming) continue;
       cands.push_back({i, j, dist});
     }

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <functional>
 #include <numbers>
 #include <numeric>
 #include <string>
@@ -105,16 +106,22 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   if (stereo) checkImage(right, *cam1_, "right");
   LineFrameTimings tm;
 
-  // Left image: detect, merge, describe every segment (all are candidates for tracking or replenishment).
+  // Left image: detect, merge; descriptors on demand (temporal candidates and the segments chosen as new tracks).
   detectAndMerge(left, &segs_l_, &desc_l_, &described_l_, &tm);
   tm.detected_left = static_cast<int>(segs_l_.size());
-  auto t0 = Clock::now();
-  for (std::size_t i = 0; i < segs_l_.size(); ++i)
-    if (!described_l_[i]) desc_l_[i] = binarizeLbd(computeLbdFloat(left, options_.lbd, segs_l_[i]));
-  tm.describe_ms += msSince(t0);
+  double describe_left_ms = 0.0;
+  auto leftDesc = [&](int i) -> const LbdDescriptor& {
+    if (!described_l_[i]) {
+      const auto td = Clock::now();
+      desc_l_[i] = binarizeLbd(computeLbdFloat(left, options_.lbd, segs_l_[i]));
+      described_l_[i] = 1;
+      describe_left_ms += msSince(td);
+    }
+    return desc_l_[i];
+  };
 
   // Temporal matching against the lines delivered last frame.
-  t0 = Clock::now();
+  auto t0 = Clock::now();
   // Candidates: the lines delivered last frame, then the recently lost ones (missed for <= max_missed frames).
   std::vector<const Track*> prev;
   prev.reserve(tracks_.size() + lost_.size());
@@ -128,14 +135,15 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   }
   std::vector<int> match_of_cur;
   const Vec2 centre(0.5 * (left.cols - 1), 0.5 * (left.rows - 1));
-  tm.tracked = matchTemporal(options_.temporal, prev_segs, prev_desc, segs_l_, desc_l_, centre, &match_of_cur);
+  tm.tracked = matchTemporal(options_.temporal, prev_segs, prev_desc, segs_l_,
+                             std::function<const LbdDescriptor&(int)>(leftDesc), centre, &match_of_cur);
   std::vector<Track> next;
   next.reserve(options_.max_lines);
   std::vector<char> used(segs_l_.size(), 0), prev_matched(prev.size(), 0);
   for (std::size_t i = 0; i < segs_l_.size(); ++i) {
     if (match_of_cur[i] < 0) continue;
     const Track& old = *prev[match_of_cur[i]];
-    next.push_back(Track{old.id, segs_l_[i], desc_l_[i], old.length + 1, 0});
+    next.push_back(Track{old.id, segs_l_[i], leftDesc(static_cast<int>(i)), old.length + 1, 0});
     used[i] = 1;
     prev_matched[match_of_cur[i]] = 1;
   }
@@ -170,12 +178,13 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     ++cell_new[c];
     if (segs_l_[i].length() < options_.min_new_length_px) continue;
     if (duplicatesTrack(segs_l_[i], next)) continue;
-    next.push_back(Track{next_id_++, segs_l_[i], desc_l_[i], 1, 0});
+    next.push_back(Track{next_id_++, segs_l_[i], leftDesc(static_cast<int>(i)), 1, 0});
     ++tm.new_lines;
   }
   std::sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.id < b.id; });
   tracks_.swap(next);
-  tm.temporal_ms = msSince(t0);
+  tm.temporal_ms = msSince(t0) - describe_left_ms;
+  tm.describe_ms += describe_left_ms;
   t0 = Clock::now();
   for (Track& tr : tracks_) refine(left, &tr.px);
   tm.detect_ms += msSince(t0);

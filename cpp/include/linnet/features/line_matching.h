@@ -2,6 +2,7 @@
 // stereo (left -> right, descriptor + epipolar overlap of both endpoints with the calibrated extrinsics).
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include "linnet/core/pose.h"
@@ -71,6 +72,13 @@ int selectMutualBest(int n_a, int n_b, const std::vector<LineMatchCandidate>& ca
 int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSegment>& prev,
                   const std::vector<LbdDescriptor>& prev_desc, const std::vector<LineSegment>& cur,
                   const std::vector<LbdDescriptor>& cur_desc, const Vec2& centre, std::vector<int>* match_of_cur);
+
+/// As above, with the current descriptors computed on demand (only segments that pass the geometric gates of some
+/// previous line are described): cur_desc(i) returns the descriptor of cur[i].
+int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSegment>& prev,
+                  const std::vector<LbdDescriptor>& prev_desc, const std::vector<LineSegment>& cur,
+                  const std::function<const LbdDescriptor&(int)>& cur_desc, const Vec2& centre,
+                  std::vector<int>* match_of_cur);
 
 /// Epipolar test of a left / right pair in normalised coordinates. On success, *overlap is the overlap ratio and
 /// q_s, q_e (optional) the points of the right line corresponding to the left endpoints.
