@@ -6,7 +6,10 @@
 
 #include "estimator/synthetic_vio.h"
 #include "linnet/core/error.h"
+#include "linnet/estimator/factors/prior_factor.h"
+#include "linnet/estimator/initial_prior.h"
 #include "linnet/estimator/keyframe_policy.h"
+#include "linnet/estimator/manifolds.h"
 #include "linnet/estimator/pnp.h"
 #include "linnet/estimator/point_landmarks.h"
 #include "linnet/estimator/window.h"
@@ -142,6 +145,49 @@ TEST(PointLandmarks, StereoTriangulationReanchoringAndResidualKinds) {
   const PointLandmark& lm = lms.all().at(42);
   EXPECT_EQ(lm.host, w[1].id);
   EXPECT_LT((lms.worldPosition(w, lm) - p_W).norm(), 1e-6);
+}
+
+}  // namespace
+}  // namespace linnet::testing
+
+namespace linnet::testing {
+namespace {
+
+TEST(InitialPrior, PinsPositionAndYawButNotTilt) {
+  WindowFrame f;
+  f.id = 3;
+  f.setPose(Pose(expSO3(Vec3(0.3, -0.2, 1.0)), Vec3(1.0, 2.0, 3.0)));
+  f.setV(Vec3(0.1, 0.2, 0.3));
+  PoseManifold manifold;
+  InitialPriorSigmas s;
+  s.velocity = 0.05;
+  const auto prior = makeInitialPrior(f, s, &manifold);
+  ASSERT_EQ(prior->keys.size(), 2u);
+  EXPECT_EQ(prior->keys[0], frameBlockKey(3, BlockKind::kPose));
+  PriorFactor factor(prior);
+  auto evaluate = [&](const Pose& T, const Vec3& v) {
+    WindowFrame g;
+    g.pose = f.pose;
+    g.speed_bias = f.speed_bias;
+    g.setPose(T);
+    g.setV(v);
+    const double* blocks[2] = {g.pose.data(), g.speed_bias.data()};
+    Eigen::VectorXd r(factor.num_residuals());
+    EXPECT_TRUE(factor.Evaluate(blocks, r.data(), nullptr));
+    return r;
+  };
+  const Pose T = f.T_W_B();
+  EXPECT_LT(evaluate(T, f.v()).norm(), 1e-12);
+  // A rotation about z of W (yaw) and a position change are penalised; a tilt is not.
+  const double eps = 1e-4;
+  const Eigen::VectorXd r_yaw = evaluate(Pose(expSO3(Vec3(0, 0, eps)) * T.q, T.p), f.v());
+  EXPECT_NEAR(r_yaw.norm(), eps / s.yaw_rad, 1e-3 * eps / s.yaw_rad);
+  const Eigen::VectorXd r_tilt = evaluate(Pose(expSO3(Vec3(eps, 0, 0)) * T.q, T.p), f.v());
+  EXPECT_LT(r_tilt.norm(), 1e-6 * eps / s.yaw_rad);
+  const Eigen::VectorXd r_pos = evaluate(Pose(T.q, T.p + Vec3(0, eps, 0)), f.v());
+  EXPECT_NEAR(r_pos.norm(), eps / s.position_m, 1e-6 * eps / s.position_m);
+  const Eigen::VectorXd r_vel = evaluate(T, f.v() + Vec3(eps, 0, 0));
+  EXPECT_NEAR(r_vel.norm(), eps / s.velocity, 1e-9);
 }
 
 }  // namespace
