@@ -69,8 +69,8 @@ void EstimatorCore::solveWindow() {
     problem.AddResidualBlock(r.cost.get(), r.robust ? &huber_ : nullptr, r.blocks);
     keep.push_back(r.cost);
   }
-  // With no prior yet, the gauge (position and yaw) is held by the oldest pose's IMU-free neighbours only through
-  // damping; fixing nothing keeps roll and pitch free for gravity to correct.
+  // The gauge (position and yaw) is held by the window's initial prior, carried on by marginalisation; no block is
+  // held constant, so roll and pitch stay free for gravity to correct.
   const SolverOptions& so = options_.solver;
   ceres::Solver::Options opts;
   opts.max_num_iterations = so.max_num_iterations;
