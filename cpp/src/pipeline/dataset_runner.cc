@@ -46,9 +46,10 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
   RunSummary summary;
   System system(config);
   const int total = static_cast<int>(last - first);
-  // IMU from shortly before the first frame (the estimator needs samples around the first image).
+  // IMU from before the first frame: the estimator's stillness test and gravity alignment look back
+  // estimator.init.gravity_window_s from the first image.
   std::size_t k = 0;
-  const Timestamp imu_start = frames[first].t - fromSeconds(0.1);
+  const Timestamp imu_start = frames[first].t - fromSeconds(config.estimator.init.gravity_window_s + 0.05);
   while (k < imu.size() && imu[k].t < imu_start) ++k;
 
   for (std::size_t i = first; i < last; ++i) {

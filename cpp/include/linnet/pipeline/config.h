@@ -17,7 +17,8 @@ struct PipelineOptions {
                                        // false: real-time, frames are dropped when the front-end is behind
   int frame_queue_capacity = 4;        // frames waiting for the front-end
   int observation_queue_capacity = 4;  // front-end results waiting for the estimator
-  bool use_lines = true;               // run the line front-end (lines are delivered in FrameObservations)
+  bool use_lines = false;              // run the line front-end (lines are delivered in FrameObservations). Off by
+                                       // default until the estimator has line residuals: it would cost time only
   bool parallel_frontend = true;       // points and lines in two workers (else one after the other)
 
   template <class V>
