@@ -124,9 +124,10 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   auto t0 = Clock::now();
   // Candidates: the lines delivered last frame, then the recently lost ones (missed for <= max_missed frames).
   std::vector<const Track*> prev;
-  prev.reserve(tracks_.size() + lost_.size());
+  prev.reserve(tracks_.size() + lost_.size() + tentative_.size());
   for (const Track& tr : tracks_) prev.push_back(&tr);
   for (const Track& tr : lost_) prev.push_back(&tr);
+  for (const Track& tr : tentative_) prev.push_back(&tr);
   std::vector<LineSegment> prev_segs(prev.size());
   std::vector<LbdDescriptor> prev_desc(prev.size());
   for (std::size_t k = 0; k < prev.size(); ++k) {
@@ -143,14 +144,18 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   for (std::size_t i = 0; i < segs_l_.size(); ++i) {
     if (match_of_cur[i] < 0) continue;
     const Track& old = *prev[match_of_cur[i]];
-    next.push_back(Track{old.id, segs_l_[i], leftDesc(static_cast<int>(i)), old.length + 1, 0});
+    next.push_back(Track{old.id, segs_l_[i], leftDesc(static_cast<int>(i)), old.length + 1, 0, false});
+    if (old.tentative) {  // confirmed: delivered from now on
+      --tm.tracked;
+      ++tm.new_lines;
+    }
     used[i] = 1;
     prev_matched[match_of_cur[i]] = 1;
   }
   // Unmatched tracks wait up to max_missed frames to be found again (detections flicker).
   std::vector<Track> lost;
   for (std::size_t k = 0; k < prev.size(); ++k) {
-    if (prev_matched[k] || prev[k]->missed + 1 > options_.max_missed) continue;
+    if (prev_matched[k] || prev[k]->tentative || prev[k]->missed + 1 > options_.max_missed) continue;
     Track t = *prev[k];
     ++t.missed;
     lost.push_back(t);
@@ -171,16 +176,24 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     const int cy = std::clamp(static_cast<int>(m.y() * gr / left.rows), 0, gr - 1);
     return cy * gc + cx;
   };
-  for (std::size_t i = 0; i < segs_l_.size() && static_cast<int>(next.size()) < options_.max_lines; ++i) {
-    if (used[i]) continue;
+  // With confirm_new, a new segment is a tentative track (not delivered) until it is matched in the next frame.
+  std::vector<Track> tentative;
+  for (std::size_t i = 0; i < segs_l_.size(); ++i) {
+    if (static_cast<int>(next.size() + tentative.size()) >= options_.max_lines) break;
+    if (used[i] || segs_l_[i].length() < options_.min_new_length_px) continue;
     const int c = cellOf(segs_l_[i]);
     if (cell_new[c] >= options_.max_new_per_cell) continue;
+    if (duplicatesTrack(segs_l_[i], next) || duplicatesTrack(segs_l_[i], tentative)) continue;
     ++cell_new[c];
-    if (segs_l_[i].length() < options_.min_new_length_px) continue;
-    if (duplicatesTrack(segs_l_[i], next)) continue;
-    next.push_back(Track{next_id_++, segs_l_[i], leftDesc(static_cast<int>(i)), 1, 0});
-    ++tm.new_lines;
+    Track t{next_id_++, segs_l_[i], leftDesc(static_cast<int>(i)), 1, 0, options_.confirm_new};
+    if (options_.confirm_new) {
+      tentative.push_back(t);
+    } else {
+      next.push_back(t);
+      ++tm.new_lines;
+    }
   }
+  tentative_.swap(tentative);
   std::sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.id < b.id; });
   tracks_.swap(next);
   tm.temporal_ms = msSince(t0) - describe_left_ms;

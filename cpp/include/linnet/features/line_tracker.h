@@ -31,6 +31,7 @@ struct LineTrackerOptions {
   int max_new_per_cell = 4;    // new lines started per grid cell and frame (by midpoint)
   double min_new_length_px = 40.0;  // shortest segment that starts a new track, pixels
   int max_missed = 2;          // frames a lost track is kept for re-detection (same id), 0 = none
+  bool confirm_new = true;     // deliver a new line only from its second frame (drops one-frame flicker)
   bool match_stereo = true;    // false: ignore the right image
 
   template <class V>
@@ -46,6 +47,7 @@ struct LineTrackerOptions {
     v("max_new_per_cell", max_new_per_cell, "new lines per grid cell and frame", 1, 10000);
     v("min_new_length_px", min_new_length_px, "shortest segment starting a track, pixels", 0.0, 10000.0);
     v("max_missed", max_missed, "frames a lost track may be re-detected", 0, 100);
+    v("confirm_new", confirm_new, "deliver new lines from their second frame on");
     v("match_stereo", match_stereo, "match lines in the right image");
   }
 };
@@ -72,6 +74,7 @@ class LineTracker {
     LbdDescriptor desc{};  // left descriptor
     int length = 1;        // frames in which this id was delivered (gaps of <= max_missed frames allowed)
     int missed = 0;        // frames since last seen (0 for delivered tracks)
+    bool tentative = false;  // started this frame, not delivered until matched again (confirm_new)
   };
   const std::vector<Track>& tracks() const { return tracks_; }
 
@@ -89,7 +92,8 @@ class LineTracker {
   Pose T_C1_C0_;
   LineDetector detector_;
   std::vector<Track> tracks_;
-  std::vector<Track> lost_;  // recently lost tracks (missed 1..max_missed frames)
+  std::vector<Track> lost_;       // recently lost tracks (missed 1..max_missed frames)
+  std::vector<Track> tentative_;  // started last frame, awaiting confirmation
   std::int64_t next_id_ = 0;
   Timestamp last_t_ = 0;
   bool has_last_ = false;
