@@ -78,7 +78,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
   const double sqrt_info = pointSqrtInformation(options_.focal_length, options_.pixel_sigma);
   for (auto& [id, lm] : landmarks_) {
     if (host_only < 0) lm.used = false;
-    if (!lm.triangulated || lm.obs.size() < 2) continue;
+    if (!usable(lm)) continue;
     if (host_only >= 0 && lm.host != host_only) continue;
     WindowFrame* host = const_cast<Window&>(window).find(lm.host);
     if (host == nullptr) continue;
@@ -104,7 +104,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
       r1.robust = true;
       r1.blocks = {host->pose.data(), f->pose.data(), &lm.inv_depth};
       r1.keys = {frameBlockKey(lm.host, BlockKind::kPose), frameBlockKey(fid, BlockKind::kPose), lm_key};
-      if (o.has_right) {
+      if (o.has_right && options_.right_residuals_all_frames) {
         // Kind 2: host cam0 -> this frame's cam1.
         ResidualSpec r2;
         r2.cost = std::make_shared<PointReprojectionFactor>(ho.uv0, o.uv1, T_B_C0_, *T_B_C1_, sqrt_info);
@@ -125,7 +125,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
 std::vector<std::int64_t> PointLandmarks::hostedUsable(FrameId frame) const {
   std::vector<std::int64_t> ids;
   for (const auto& [id, lm] : landmarks_)
-    if (lm.triangulated && lm.obs.size() >= 2 && lm.host == frame) ids.push_back(id);
+    if (usable(lm) && lm.host == frame) ids.push_back(id);
   return ids;
 }
 

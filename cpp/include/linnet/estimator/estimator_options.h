@@ -94,6 +94,9 @@ struct SolverOptions {
   double min_depth_m = 0.1;          // triangulated depth range, m
   double max_depth_m = 40.0;
   double min_triangulation_deg = 1.0;  // smallest ray angle for a multi-view (non-stereo) triangulation, deg
+  int min_observations = 2;          // window frames a landmark must be seen in to enter a solve (>= 2)
+  bool right_residuals_all_frames = true;  // host cam0 -> cam1 residuals in every observing frame (false: only the
+                                           // host frame's left-right residual uses cam1)
 
   template <class V>
   void visit(V& v) {
@@ -108,6 +111,8 @@ struct SolverOptions {
     v("min_depth_m", min_depth_m, "nearest triangulated depth, m", 0.001, 100.0);
     v("max_depth_m", max_depth_m, "farthest triangulated depth, m", 0.1, 100000.0);
     v("min_triangulation_deg", min_triangulation_deg, "smallest multi-view ray angle, deg", 0.0, 90.0);
+    v("min_observations", min_observations, "frames a landmark must be seen in to enter a solve", 2, 1000);
+    v("right_residuals_all_frames", right_residuals_all_frames, "cam1 residuals in every observing frame");
   }
 };
 

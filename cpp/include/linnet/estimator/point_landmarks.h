@@ -6,6 +6,7 @@
 // rejectOutliers, with its own keys (lineBlockKey) -- the estimator calls each kind in turn.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -75,6 +76,10 @@ class PointLandmarks {
  private:
   bool triangulateOne(const Window& window, PointLandmark& lm) const;
   double meanErrorPx(const Window& window, const PointLandmark& lm) const;
+  /// Takes part in solves: triangulated and seen in at least solver.min_observations window frames.
+  bool usable(const PointLandmark& lm) const {
+    return lm.triangulated && lm.obs.size() >= static_cast<std::size_t>(std::max(2, options_.min_observations));
+  }
   bool depthOk(double depth) const { return depth >= options_.min_depth_m && depth <= options_.max_depth_m; }
 
   SolverOptions options_;
