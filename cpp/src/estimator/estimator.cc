@@ -318,7 +318,9 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
       points_.clear();
       return finish(out);
     }
-    solveWindow();
+    // The first solve starts from the initialiser's rough state (velocities from differences, biases from a
+    // linear fit): it gets more iterations and every cam1 residual, unlike a per-frame solve from an IMU prediction.
+    solveWindow(std::max(options_.solver.max_num_iterations, options_.init.solver_iterations), true);
     points_.rejectOutliers(window_);
     slideWindow();
     const WindowFrame& f = window_.newest();
@@ -340,7 +342,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   }
   decideKeyframe(f, tracked);
   points_.triangulate(window_);
-  solveWindow();
+  solveWindow(options_.solver.max_num_iterations);
   if (failureAfterSolve(predicted)) {
     resetAfterFailure(obs, predicted, &out);
     return finish(out);

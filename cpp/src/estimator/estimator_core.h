@@ -56,7 +56,8 @@ class EstimatorCore {
   // --- estimator_solve.cc
   void repropagateIfNeeded();
   std::vector<ResidualSpec> imuResiduals(int first, int last);
-  void solveWindow();
+  /// all_right: every cam1 residual (the initialisation's solve), else as solver.right_residuals_all_frames says.
+  void solveWindow(int max_iterations, bool all_right = false);
   void slideWindow();
   void marginaliseOldest();
   void dropFrame(int index);

@@ -35,7 +35,7 @@ std::vector<ResidualSpec> EstimatorCore::imuResiduals(int first, int last) {
   return out;
 }
 
-void EstimatorCore::solveWindow() {
+void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   repropagateIfNeeded();
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -66,7 +66,7 @@ void EstimatorCore::solveWindow() {
     keep.push_back(f);
   }
   std::vector<ResidualSpec> residuals = imuResiduals(1, window_.size() - 1);
-  std::vector<ResidualSpec> visual = points_.residuals(window_);
+  std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right);
   for (ResidualSpec& r : visual) residuals.push_back(std::move(r));
   for (const ResidualSpec& r : residuals) {
     problem.AddResidualBlock(r.cost.get(), r.robust ? &huber_ : nullptr, r.blocks);
@@ -76,7 +76,7 @@ void EstimatorCore::solveWindow() {
   // held constant, so roll and pitch stay free for gravity to correct.
   const SolverOptions& so = options_.solver;
   ceres::Solver::Options opts;
-  opts.max_num_iterations = so.max_num_iterations;
+  opts.max_num_iterations = max_iterations;
   opts.max_solver_time_in_seconds = so.max_solver_time_s;
   opts.num_threads = 1;
   opts.logging_type = ceres::SILENT;

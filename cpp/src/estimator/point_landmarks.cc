@@ -73,7 +73,7 @@ int PointLandmarks::triangulate(const Window& window) {
   return n;
 }
 
-std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameId host_only) {
+std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameId host_only, bool all_right) {
   std::vector<ResidualSpec> out;
   const double sqrt_info = pointSqrtInformation(options_.focal_length, options_.pixel_sigma);
   for (auto& [id, lm] : landmarks_) {
@@ -104,7 +104,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
       r1.robust = true;
       r1.blocks = {host->pose.data(), f->pose.data(), &lm.inv_depth};
       r1.keys = {frameBlockKey(lm.host, BlockKind::kPose), frameBlockKey(fid, BlockKind::kPose), lm_key};
-      if (o.has_right && options_.right_residuals_all_frames) {
+      if (o.has_right && (all_right || options_.right_residuals_all_frames)) {
         // Kind 2: host cam0 -> this frame's cam1.
         ResidualSpec r2;
         r2.cost = std::make_shared<PointReprojectionFactor>(ho.uv0, o.uv1, T_B_C0_, *T_B_C1_, sqrt_info);

@@ -128,12 +128,34 @@ TEST(PointLandmarks, StereoTriangulationReanchoringAndResidualKinds) {
     o.uv1 = c1.head<2>() / c1.z();
     return std::vector<PointObservation>{o};
   };
-  PointLandmarks lms(SolverOptions(), T_B_C0, T_B_C1);
+  SolverOptions so;
+  so.right_residuals_all_frames = true;
+  {
+    // Default: cam1 only through the host frame's left-right residual (kind 3), the other frame by kind 1.
+    PointLandmarks lean(SolverOptions(), T_B_C0, T_B_C1);
+    lean.observe(w[0].id, observation(w[0], true));
+    EXPECT_EQ(lean.triangulate(w), 1);
+    lean.observe(w[1].id, observation(w[1], true));
+    const std::vector<ResidualSpec> r = lean.residuals(w);
+    ASSERT_EQ(r.size(), 2u);
+    EXPECT_EQ(r[0].blocks.size(), 1u);
+    EXPECT_EQ(r[1].blocks.size(), 3u);
+    // A landmark seen in fewer than min_observations frames stays out of the solve.
+    SolverOptions three;
+    three.min_observations = 3;
+    PointLandmarks strict(three, T_B_C0, T_B_C1);
+    strict.observe(w[0].id, observation(w[0], true));
+    strict.triangulate(w);
+    strict.observe(w[1].id, observation(w[1], true));
+    EXPECT_TRUE(strict.residuals(w).empty());
+    EXPECT_EQ(strict.countUsed(), 0);
+  }
+  PointLandmarks lms(so, T_B_C0, T_B_C1);
   lms.observe(w[0].id, observation(w[0], true));
   EXPECT_EQ(lms.triangulate(w), 1);
   lms.observe(w[1].id, observation(w[1], true));
   EXPECT_LT((lms.worldPosition(w, lms.all().at(42)) - p_W).norm(), 1e-6);
-  // Host frame: kind 3; the other frame: kinds 1 and 2.
+  // right_residuals_all_frames: host frame: kind 3; the other frame: kinds 1 and 2.
   const std::vector<ResidualSpec> r = lms.residuals(w);
   ASSERT_EQ(r.size(), 3u);
   EXPECT_EQ(r[0].blocks.size(), 1u);

@@ -47,7 +47,8 @@ class PointLandmarks {
   int triangulate(const Window& window);
   /// Residuals of the landmarks usable in a solve (triangulated, observed in >= 2 frames). Marks them used.
   /// If host_only >= 0, only the landmarks hosted in that frame (for marginalisation), without touching `used`.
-  std::vector<ResidualSpec> residuals(const Window& window, FrameId host_only = -1);
+  /// all_right: cam1 residuals in every observing frame whatever solver.right_residuals_all_frames says.
+  std::vector<ResidualSpec> residuals(const Window& window, FrameId host_only = -1, bool all_right = false);
   /// Ids of the landmarks hosted in `frame` that residuals(window, frame) covers.
   std::vector<std::int64_t> hostedUsable(FrameId frame) const;
   /// Drops the frame's observations. Landmarks hosted there are re-anchored to their next observing frame
