@@ -148,9 +148,8 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
                                 p.klt_epsilon);
     const int levels = std::min(p.klt_levels, std::max(1, lvl));
     std::vector<unsigned char> st_f, st_b;
-    std::vector<float> err;
-    cv::calcOpticalFlowPyrLK(pyr0, pyr1, left, right, st_f, err, win, levels, crit, cv::OPTFLOW_USE_INITIAL_FLOW,
-                             p.klt_min_eigen);
+    cv::calcOpticalFlowPyrLK(pyr0, pyr1, left, right, st_f, cv::noArray(), win, levels, crit,
+                             cv::OPTFLOW_USE_INITIAL_FLOW, p.klt_min_eigen);
     // Right -> left round trip, only for the points the forward pass kept.
     std::vector<cv::Point2f> fwd, back;
     std::vector<std::size_t> fwd_k;
@@ -161,8 +160,8 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
         back.push_back(left[k]);
       }
     if (!fwd.empty())
-      cv::calcOpticalFlowPyrLK(pyr1, pyr0, fwd, back, st_b, err, win, levels, crit, cv::OPTFLOW_USE_INITIAL_FLOW,
-                               p.klt_min_eigen);
+      cv::calcOpticalFlowPyrLK(pyr1, pyr0, fwd, back, st_b, cv::noArray(), win, levels, crit,
+                               cv::OPTFLOW_USE_INITIAL_FLOW, p.klt_min_eigen);
     std::vector<unsigned char> round_trip(idx.size(), 0);
     const double fb2 = p.fb_threshold_px * p.fb_threshold_px;
     for (std::size_t j = 0; j < fwd_k.size(); ++j) {

@@ -163,9 +163,9 @@ void PointTracker::trackTemporal(double dt) {
   const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, opt_.klt_max_iterations,
                               opt_.klt_epsilon);
   std::vector<unsigned char> st_f, st_b;
-  std::vector<float> err;
-  cv::calcOpticalFlowPyrLK(pyr_prev_, pyr_cur_, prev, cur, st_f, err, win, opt_.klt_pyramid_levels, crit,
-                           cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
+  // The KLT error output is not used: cv::noArray() spares OpenCV computing it.
+  cv::calcOpticalFlowPyrLK(pyr_prev_, pyr_cur_, prev, cur, st_f, cv::noArray(), win, opt_.klt_pyramid_levels,
+                           crit, cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
   // Backward check, only for the points the forward pass kept (and inside the image). It starts at the previous
   // position; fewer levels are cheaper but weaker (VINS-Fusion uses 1).
   std::vector<cv::Point2f> fwd, back;
@@ -177,7 +177,7 @@ void PointTracker::trackTemporal(double dt) {
       back.push_back(prev[i]);
     }
   if (!fwd.empty())
-    cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, err, win,
+    cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, cv::noArray(), win,
                              std::min(opt_.fb_pyramid_levels, opt_.klt_pyramid_levels), crit,
                              cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
   std::vector<unsigned char> ok(n, 0);
