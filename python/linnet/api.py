@@ -65,6 +65,9 @@ def summarize(run: "_linnet.RunSummary", dataset: PathLike) -> dict:
         "wall_time_s": run.wall_time_s,
         "sequence_duration_s": run.sequence_duration_s,
         "real_time_factor": run.real_time_factor,
+        "cpu_time_s": run.cpu_time_s,
+        "cpu_real_time_factor": run.cpu_real_time_factor,
+        "image_load_cpu_s": run.image_load_cpu_s,
     }
     gt = find_ground_truth(dataset)
     traj = run.trajectory(True)

@@ -9,6 +9,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "linnet/core/cpu_clock.h"
 #include "linnet/core/error.h"
 #include "linnet/features/line_tracker.h"
 #include "linnet/features/point_tracker.h"
@@ -33,6 +34,8 @@ struct FrameInput {
 struct ObservationItem {
   FrameObservations obs;
   double frontend_ms = 0.0;
+  double point_cpu_ms = 0.0;
+  double line_cpu_ms = 0.0;
 };
 
 }  // namespace
@@ -135,24 +138,24 @@ struct System::Impl {
         item.obs.t = in->t;
         item.obs.stereo = config.stereo;
         const auto t0 = Clock::now();
-        if (config.pipeline.use_lines && line_worker) {
-          line_worker->submit([&] {
-            const auto tl = Clock::now();
-            lines.track(in->t, in->left, in->right, &item.obs.lines);
-            item.obs.line_ms = msSince(tl);
-          });
-        }
+        auto trackLines = [&] {
+          const auto tl = Clock::now();
+          const double cl = threadCpuMs();
+          lines.track(in->t, in->left, in->right, &item.obs.lines);
+          item.line_cpu_ms = threadCpuMs() - cl;
+          item.obs.line_ms = msSince(tl);
+        };
+        if (config.pipeline.use_lines && line_worker) line_worker->submit(trackLines);
         const auto tp = Clock::now();
+        const double cp = threadCpuMs();
         points.track(in->t, in->left, in->right, &item.obs.points);
+        item.point_cpu_ms = threadCpuMs() - cp;
         item.obs.point_ms = msSince(tp);
         if (config.pipeline.use_lines) {
-          if (line_worker) {
+          if (line_worker)
             line_worker->wait();
-          } else {
-            const auto tl = Clock::now();
-            lines.track(in->t, in->left, in->right, &item.obs.lines);
-            item.obs.line_ms = msSince(tl);
-          }
+          else
+            trackLines();
         }
         item.frontend_ms = msSince(t0);
         if (!observations.push(std::move(item))) break;
@@ -195,8 +198,12 @@ struct System::Impl {
         }
         FrameResult r;
         const auto t0 = Clock::now();
+        const double c0 = threadCpuMs();
         r.estimate = estimator.addFrame(item->obs);
+        r.backend_cpu_ms = threadCpuMs() - c0;
         r.backend_ms = msSince(t0);
+        r.point_cpu_ms = item->point_cpu_ms;
+        r.line_cpu_ms = item->line_cpu_ms;
         r.frontend_ms = item->frontend_ms;
         r.point_ms = item->obs.point_ms;
         r.line_ms = item->obs.line_ms;

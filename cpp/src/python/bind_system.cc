@@ -147,7 +147,10 @@ void bindSystem(py::module_& m) {
       .def_readonly("stereo_points", &FrameResult::stereo_points)
       .def_readonly("tracked_lines", &FrameResult::tracked_lines)
       .def_readonly("frontend_ms", &FrameResult::frontend_ms)
-      .def_readonly("backend_ms", &FrameResult::backend_ms);
+      .def_readonly("backend_ms", &FrameResult::backend_ms)
+      .def_readonly("point_cpu_ms", &FrameResult::point_cpu_ms)
+      .def_readonly("line_cpu_ms", &FrameResult::line_cpu_ms)
+      .def_readonly("backend_cpu_ms", &FrameResult::backend_cpu_ms);
 
   py::class_<System>(m, "System", "Stereo/mono + IMU SLAM system: add_imu / add_stereo / add_mono, then finish()")
       .def(py::init<const Config&>(), py::arg("config"))
@@ -192,6 +195,9 @@ void bindSystem(py::module_& m) {
       .def_readonly("wall_time_s", &RunSummary::wall_time_s)
       .def_readonly("sequence_duration_s", &RunSummary::sequence_duration_s)
       .def_readonly("real_time_factor", &RunSummary::real_time_factor)
+      .def_readonly("cpu_time_s", &RunSummary::cpu_time_s)
+      .def_readonly("cpu_real_time_factor", &RunSummary::cpu_real_time_factor)
+      .def_readonly("image_load_cpu_s", &RunSummary::image_load_cpu_s)
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return pointsToArray(r.map_points); })

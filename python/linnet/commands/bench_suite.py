@@ -21,7 +21,7 @@ from pathlib import Path
 
 import click
 
-SIM_VERSION = "sim-1"  # bump when the simulator's output changes, to invalidate caches
+SIM_VERSION = "sim-2"  # bump when the simulator's output changes, to invalidate caches
 DEFAULT_SEQUENCES = ("V1_02_medium", "MH_01_easy", "V2_01_easy")
 
 

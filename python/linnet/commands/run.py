@@ -84,7 +84,9 @@ def _print_summary(summary: dict, out: Path) -> None:
         ("initialisation time", f"{summary['initialisation_time_s']:.2f} s"),
         ("re-initialisations", str(summary["reinitialisations"])),
         ("wall time", f"{summary['wall_time_s']:.2f} s"),
-        ("real-time factor", f"{summary['real_time_factor']:.3f}"),
+        ("real-time factor (wall / CPU)",
+         f"{summary['real_time_factor']:.3f} / {summary['cpu_real_time_factor']:.3f} "
+         f"(images decoded in {summary['image_load_cpu_s']:.1f} s CPU)"),
     ]
     if "ape" in summary:
         ape = summary["ape"]

@@ -26,6 +26,9 @@ struct RunSummary {
   double wall_time_s = 0.0;       // wall-clock time of the run (image loading included)
   double sequence_duration_s = 0.0;  // data time spanned by the images that were run
   double real_time_factor = 0.0;  // wall_time_s / sequence_duration_s
+  double cpu_time_s = 0.0;        // CPU time of the whole process during the run, every thread (s)
+  double cpu_real_time_factor = 0.0;  // cpu_time_s / sequence_duration_s: what the run costs on one core
+  double image_load_cpu_s = 0.0;  // CPU time spent reading and decoding the images (s), part of cpu_time_s
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;
 };

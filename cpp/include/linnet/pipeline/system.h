@@ -36,6 +36,10 @@ struct FrameResult {
   double line_ms = 0.0;      // line worker
   double frontend_ms = 0.0;  // front-end wall time (max of the two workers when parallel)
   double backend_ms = 0.0;   // estimator wall time
+  // CPU time of the same stages (thread CPU clock): what each stage costs, whatever else shares the core
+  double point_cpu_ms = 0.0;
+  double line_cpu_ms = 0.0;
+  double backend_cpu_ms = 0.0;
 };
 
 class System {
