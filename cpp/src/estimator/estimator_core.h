@@ -58,6 +58,7 @@ class EstimatorCore {
   std::vector<ResidualSpec> imuResiduals(int first, int last);
   /// all_right: every cam1 residual (the initialisation's solve), else as solver.right_residuals_all_frames says.
   void solveWindow(int max_iterations, bool all_right = false);
+  void solveWindowSchurLm(int max_iterations, bool all_right);
   void slideWindow();
   void marginaliseOldest();
   void dropFrame(int index);

@@ -8,6 +8,7 @@
 #include "estimator_core.h"
 #include "linnet/estimator/factors/imu_factor.h"
 #include "linnet/estimator/marginaliser.h"
+#include "linnet/estimator/schur_lm_solver.h"
 
 namespace linnet {
 
@@ -37,6 +38,10 @@ std::vector<ResidualSpec> EstimatorCore::imuResiduals(int first, int last) {
 
 void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   repropagateIfNeeded();
+  if (options_.solver.engine == "schur_lm") {
+    solveWindowSchurLm(max_iterations, all_right);
+    return;
+  }
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -86,6 +91,34 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
       so.linear_solver == "dense_schur" ? ceres::DENSE_SCHUR : ceres::SPARSE_NORMAL_CHOLESKY;
   ceres::Solver::Summary summary;
   ceres::Solve(opts, &problem, &summary);
+}
+
+void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
+  SchurLmSolver solver;
+  for (int k = 0; k < window_.size(); ++k) {
+    solver.addParameterBlock(window_[k].pose.data(), kPoseAmbientSize, &pose_manifold_, false);
+    solver.addParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize, nullptr, false);
+  }
+  std::vector<std::shared_ptr<PriorFactor>> prior_factors;
+  for (const auto& prior : priors_) {
+    std::vector<double*> blocks;
+    for (BlockKey key : prior->keys) blocks.push_back(window_.block(key));
+    if (std::find(blocks.begin(), blocks.end(), nullptr) != blocks.end()) continue;
+    prior_factors.push_back(std::make_shared<PriorFactor>(prior));
+    solver.addResidual(prior_factors.back().get(), nullptr, blocks);
+  }
+  const std::vector<ResidualSpec> imu = imuResiduals(1, window_.size() - 1);
+  for (const ResidualSpec& r : imu) solver.addResidual(r.cost.get(), nullptr, r.blocks);
+  const std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right);
+  std::set<BlockKey> landmarks;
+  for (const ResidualSpec& r : visual) {
+    for (std::size_t b = 0; b < r.keys.size(); ++b)
+      if (r.keys[b] < 0 && landmarks.insert(r.keys[b]).second) solver.addParameterBlock(r.blocks[b], 1, nullptr, true);
+    solver.addResidual(r.cost.get(), r.robust ? &huber_ : nullptr, r.blocks);
+  }
+  SchurLmOptions so;
+  so.max_iterations = max_iterations;
+  solver.solve(so);
 }
 
 void EstimatorCore::marginaliseOldest() {

@@ -18,13 +18,32 @@ struct Candidate {
   float response;
 };
 
-std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask, int threshold) {
-  std::vector<cv::KeyPoint> kps;
-  cv::FAST(image, kps, threshold, /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
+// FAST corners (9-16, non-maximum suppression) where the mask is set. Only grid cells with free mask pixels are
+// searched: with a full set of tracks most of the image lies under their exclusion discs, so this skips most of it.
+// Each cell is searched with a margin of kFastMargin pixels (FAST's 3-pixel ring plus the 3x3 suppression), which
+// makes the result the same as a whole-image search.
+std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask, int threshold, int cols, int rows) {
+  constexpr int kFastMargin = 4;
   std::vector<Candidate> c;
-  c.reserve(kps.size());
-  for (const cv::KeyPoint& k : kps)
-    if (mask.at<unsigned char>(cvRound(k.pt.y), cvRound(k.pt.x))) c.push_back({k.pt, k.response});
+  std::vector<cv::KeyPoint> kps;
+  for (int gy = 0; gy < rows; ++gy) {
+    for (int gx = 0; gx < cols; ++gx) {
+      const cv::Rect cell(gx * image.cols / cols, gy * image.rows / rows,
+                          (gx + 1) * image.cols / cols - gx * image.cols / cols,
+                          (gy + 1) * image.rows / rows - gy * image.rows / rows);
+      if (cell.area() == 0 || cv::countNonZero(mask(cell)) == 0) continue;
+      const cv::Rect roi = cv::Rect(cell.x - kFastMargin, cell.y - kFastMargin, cell.width + 2 * kFastMargin,
+                                    cell.height + 2 * kFastMargin) &
+                           cv::Rect(0, 0, image.cols, image.rows);
+      kps.clear();
+      cv::FAST(image(roi), kps, threshold, /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
+      for (const cv::KeyPoint& k : kps) {
+        const cv::Point2f pt(k.pt.x + static_cast<float>(roi.x), k.pt.y + static_cast<float>(roi.y));
+        const cv::Point ip(cvRound(pt.x), cvRound(pt.y));
+        if (cell.contains(ip) && mask.at<unsigned char>(ip)) c.push_back({pt, k.response});
+      }
+    }
+  }
   return c;
 }
 
@@ -92,7 +111,7 @@ std::vector<cv::Point2f> detectCorners(const cv::Mat& image, cv::Mat* mask, int 
   // in the space that is still free. Shi-Tomasi: one round (its threshold is relative to the strongest corner).
   const bool fast = p.detector != "shi_tomasi";
   for (int th = std::max(1, p.fast_threshold);; th /= 2) {
-    std::vector<Candidate> cand = fast ? fastCandidates(image, *mask, th)
+    std::vector<Candidate> cand = fast ? fastCandidates(image, *mask, th, cols, rows)
                                        : shiTomasiCandidates(image, *mask, p.shi_tomasi_quality);
     std::sort(cand.begin(), cand.end(), [](const Candidate& a, const Candidate& b) {
       if (a.response != b.response) return a.response > b.response;

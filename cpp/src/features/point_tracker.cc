@@ -30,6 +30,10 @@ void checkImage(const cv::Mat& img, const CameraModel& cam, const char* which) {
   }
 }
 
+// Adaptive stereo CLAHE decides only on frames with at least this many stereo attempts (a handful of tracks says
+// little about the image pair).
+constexpr int kMinStereoAttemptsForDecision = 20;
+
 cv::Point2f toCv(const Vec2& v) { return cv::Point2f(static_cast<float>(v.x()), static_cast<float>(v.y())); }
 Vec2 toEigen(const cv::Point2f& p) { return Vec2(p.x, p.y); }
 
@@ -52,6 +56,8 @@ void PointTracker::reset() {
   pyr_prev_.clear();
   has_last_ = false;
   R_pred_.reset();
+  stereo_clahe_on_ = true;
+  frames_since_probe_ = 0;
 }
 
 void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& right_in,
@@ -84,37 +90,28 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
   replenish(left);
 
   if (use_right) {
-    // Stereo runs on its own copies: CLAHE on both (stereo_clahe) when the temporal tracker works on raw images.
-    cv::Mat sl = left, sr = right_in;
-    const std::vector<cv::Mat>* pyr_left = &pyr_cur_;
-    if (opt_.stereo_clahe && !opt_.clahe) {
-      sl = cv::Mat();
-      sr = cv::Mat();
-      clahe_->apply(left_in, sl);
-      clahe_->apply(right_in, sr);
-      cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
-                                  cv::BORDER_CONSTANT, false);
-      pyr_left = &pyr_left_stereo_;
-    } else if (opt_.clahe) {
-      sr = cv::Mat();
-      clahe_->apply(right_in, sr);
-    }
-    if (opt_.stereo_gain_compensation) {
-      // KLT assumes equal brightness; the two cameras' gains differ (EuRoC: ~10%). Affine map of the right image's
-      // mean and standard deviation onto the left's.
-      cv::Scalar ml, dl, mr, dr;
-      cv::meanStdDev(sl, ml, dl);
-      cv::meanStdDev(sr, mr, dr);
-      if (dr[0] > 1.0 && dl[0] > 1.0) {
-        const double alpha = dl[0] / dr[0];
-        cv::Mat adjusted;
-        sr.convertTo(adjusted, CV_8U, alpha, ml[0] - alpha * mr[0]);
-        sr = adjusted;
+    // Stereo CLAHE (on copies: the temporal tracker works on raw images). Adaptive: a frame matched on raw images
+    // decides whether the next ones need CLAHE; if its raw matches fall short, that frame is matched again with CLAHE.
+    const bool may_clahe = opt_.stereo_clahe && !opt_.clahe;
+    bool with_clahe = may_clahe;
+    if (may_clahe && opt_.stereo_clahe_adaptive)
+      with_clahe = stereo_clahe_on_ && ++frames_since_probe_ < opt_.stereo_clahe_probe_frames;
+    if (may_clahe && !with_clahe) {
+      const std::vector<Track> before = tracks_;
+      stereoPass(left, right_in, false);
+      const bool decided = stats_.stereo_attempted >= kMinStereoAttemptsForDecision;
+      const bool raw_ok = decided && stats_.stereo_matched >= opt_.stereo_clahe_min_ratio * stats_.stereo_attempted;
+      if (decided) {
+        stereo_clahe_on_ = !raw_ok;
+        frames_since_probe_ = 0;
       }
+      if (!raw_ok) {
+        tracks_ = before;
+        stereoPass(left_in, right_in, true);
+      }
+    } else {
+      stereoPass(left, right_in, with_clahe);
     }
-    cv::buildOpticalFlowPyramid(sr, pyr_right_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
-                                cv::BORDER_CONSTANT, false);
-    matchStereo(*pyr_left);
   } else {
     for (Track& tr : tracks_) tr.has_right = tr.right_prior = false;
   }
@@ -268,7 +265,7 @@ void PointTracker::replenish(const cv::Mat& image) {
   tracks_ = std::move(kept);
 
   const int need = opt_.max_points - static_cast<int>(tracks_.size());
-  if (need <= 0) return;
+  if (need <= 0 || need < std::min(opt_.min_new_points, opt_.max_points)) return;
   for (const cv::Point2f& p : detectCorners(image, &mask, need, dp)) {
     Vec2 uv;
     if (!cam0_.undistort(toEigen(p), &uv)) continue;
@@ -286,6 +283,41 @@ void PointTracker::replenish(const cv::Mat& image) {
     tracks_.push_back(tr);
     ++stats_.detected;
   }
+}
+
+void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool stereo_clahe) {
+  const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
+  cv::Mat sl = left, sr = right_in;
+  const std::vector<cv::Mat>* pyr_left = &pyr_cur_;
+  stats_.used_stereo_clahe = stereo_clahe || opt_.clahe;
+  if (stereo_clahe) {
+    sl = cv::Mat();
+    sr = cv::Mat();
+    clahe_->apply(left, sl);
+    clahe_->apply(right_in, sr);
+    cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+                                cv::BORDER_CONSTANT, false);
+    pyr_left = &pyr_left_stereo_;
+  } else if (opt_.clahe) {
+    sr = cv::Mat();
+    clahe_->apply(right_in, sr);
+  }
+  if (opt_.stereo_gain_compensation) {
+    // KLT assumes equal brightness; the two cameras' gains differ (EuRoC: ~10%). Affine map of the right image's
+    // mean and standard deviation onto the left's.
+    cv::Scalar ml, dl, mr, dr;
+    cv::meanStdDev(sl, ml, dl);
+    cv::meanStdDev(sr, mr, dr);
+    if (dr[0] > 1.0 && dl[0] > 1.0) {
+      const double alpha = dl[0] / dr[0];
+      cv::Mat adjusted;
+      sr.convertTo(adjusted, CV_8U, alpha, ml[0] - alpha * mr[0]);
+      sr = adjusted;
+    }
+  }
+  cv::buildOpticalFlowPyramid(sr, pyr_right_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+                              cv::BORDER_CONSTANT, false);
+  matchStereo(*pyr_left);
 }
 
 void PointTracker::matchStereo(const std::vector<cv::Mat>& pyr_left) {

@@ -201,6 +201,7 @@ void bindSystem(py::module_& m) {
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return pointsToArray(r.map_points); })
+      .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
       .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
            py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply into out_dir");
 

@@ -131,6 +131,9 @@ TEST(PointTracker, EurocMicroTracksStereoAndDepths) {
   EXPECT_LT(median(depths), 6.0);
   EXPECT_LT(median(epi_px), 0.5);
   EXPECT_LE(*std::max_element(epi_px.begin(), epi_px.end()), PointTrackerOptions().stereo_epipolar_threshold_px + 1e-6);
+  // Adaptive stereo CLAHE: raw EuRoC pairs match well under 80% of the tracks, so every frame (including the raw
+  // tries every stereo_clahe_probe_frames frames, which are matched again) ends up matched with CLAHE.
+  for (const PointTrackerStats& s : stats) EXPECT_TRUE(s.used_stereo_clahe);
 }
 
 TEST(PointTracker, Deterministic) {
@@ -277,6 +280,40 @@ TEST(PointTracker, RotationPredictionFollowsLargeRotation) {
     } else {
       EXPECT_LT(tracked, 60);  // the prediction is what makes this work
     }
+  }
+}
+
+TEST(PointTracker, AdaptiveStereoClaheIsDroppedWhenRawImagesMatch) {
+  // A textured fronto-parallel plane 2 m away seen by a rig with an 11 cm baseline: the raw pair matches nearly
+  // every track, so the adaptive mode leaves CLAHE after its first raw try; with adaptivity off it stays on.
+  const auto cam = pinhole(640, 480);
+  const cv::Mat left = texturedImage(640, 480, 5);
+  const double baseline = 0.11, depth = 2.0, shift = 400.0 * baseline / depth;
+  cv::Mat right;
+  const cv::Mat A = (cv::Mat_<double>(2, 3) << 1, 0, -shift, 0, 1, 0);
+  cv::warpAffine(left, right, A, left.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT_101);
+  const Pose T_C1_C0(Quat::Identity(), Vec3(-baseline, 0.0, 0.0));
+  for (const bool adaptive : {true, false}) {
+    PointTrackerOptions opt;
+    opt.stereo_clahe_adaptive = adaptive;
+    PointTracker tracker(opt, *cam, cam.get(), T_C1_C0);
+    std::vector<int> used;
+    int matched_last = 0;
+    for (int k = 0; k < 2 * opt.stereo_clahe_probe_frames; ++k) {
+      std::vector<PointObservation> obs;
+      tracker.track((k + 1) * 50'000'000LL, left, right, &obs);
+      used.push_back(tracker.lastStats().used_stereo_clahe);
+      matched_last = tracker.lastStats().stereo_matched;
+    }
+    const int on = std::accumulate(used.begin(), used.end(), 0);
+    EXPECT_TRUE(used.front());
+    if (adaptive) {
+      EXPECT_EQ(on, opt.stereo_clahe_probe_frames - 1);  // on until the first raw try, then off for good
+      EXPECT_FALSE(used.back());
+    } else {
+      EXPECT_EQ(on, static_cast<int>(used.size()));
+    }
+    EXPECT_GE(matched_last, opt.max_points * 8 / 10) << adaptive;
   }
 }
 

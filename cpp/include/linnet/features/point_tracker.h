@@ -47,6 +47,9 @@ struct PointTrackerOptions {
   // Replenishment
   std::string detector = "fast";         // "fast" | "shi_tomasi"
   int fast_threshold = 20;               // FAST intensity threshold, 0..255 (lowered automatically down to 5)
+  int min_new_points = 8;                // replenish only when at least this many tracks are missing (each detection
+                                         // pass costs a FAST search over the free image; a few missing tracks are
+                                         // replaced a frame or two later)
   double shi_tomasi_quality = 0.01;      // fraction of the strongest Shi-Tomasi response
   int grid_cols = 8;                     // detection buckets across the image
   int grid_rows = 6;                     // detection buckets down the image
@@ -67,6 +70,12 @@ struct PointTrackerOptions {
                                          // error on a known rotation 0.055 -> 0.14 px median, so it is off by default
   bool stereo_clahe = true;              // CLAHE on copies used only for stereo matching (EuRoC: stereo matches
                                          // ~51% -> ~61% of the tracks; ~2 ms per stereo frame)
+  bool stereo_clahe_adaptive = true;     // pay for stereo CLAHE only while it is needed: it is dropped while the raw
+                                         // images match at least stereo_clahe_min_ratio of the attempted tracks
+                                         // (tried again every stereo_clahe_probe_frames frames while CLAHE is on; a
+                                         // raw try that falls short is matched again with CLAHE)
+  double stereo_clahe_min_ratio = 0.8;   // fraction of attempted stereo matches that makes CLAHE unnecessary
+  int stereo_clahe_probe_frames = 30;    // while CLAHE is on, one frame in this many is matched without it
   double clahe_clip_limit = 3.0;         // CLAHE clip limit
   int clahe_tiles = 8;                   // CLAHE tiles per side
 
@@ -90,6 +99,7 @@ struct PointTrackerOptions {
     v("use_rotation_prediction", use_rotation_prediction, "seed KLT with the IMU rotation prediction");
     v.choice("detector", detector, "corner detector for replenishment", {"fast", "shi_tomasi"});
     v("fast_threshold", fast_threshold, "FAST intensity threshold", 1, 255);
+    v("min_new_points", min_new_points, "replenish only when at least this many tracks are missing", 1, 5000);
     v("shi_tomasi_quality", shi_tomasi_quality, "fraction of the strongest Shi-Tomasi response", 1e-6, 1.0);
     v("grid_cols", grid_cols, "detection buckets across the image", 1, 100);
     v("grid_rows", grid_rows, "detection buckets down the image", 1, 100);
@@ -106,6 +116,11 @@ struct PointTrackerOptions {
     v("stereo_gain_compensation", stereo_gain_compensation, "match the right image's mean and contrast to the left's");
     v("clahe", clahe, "CLAHE before all tracking");
     v("stereo_clahe", stereo_clahe, "CLAHE on the copies used for stereo matching");
+    v("stereo_clahe_adaptive", stereo_clahe_adaptive, "stereo CLAHE only while raw images match too few tracks");
+    v("stereo_clahe_min_ratio", stereo_clahe_min_ratio, "matched fraction that makes stereo CLAHE unnecessary", 0.0,
+      1.0);
+    v("stereo_clahe_probe_frames", stereo_clahe_probe_frames, "while stereo CLAHE is on, frames between raw tries", 2,
+      100000);
     v("clahe_clip_limit", clahe_clip_limit, "CLAHE clip limit", 0.1, 100.0);
     v("clahe_tiles", clahe_tiles, "CLAHE tiles per side", 1, 64);
   }
@@ -125,6 +140,7 @@ struct PointTrackerStats {
   int stereo_epipolar_rejected = 0;
   int stereo_depth_rejected = 0;  // negative or below stereo_min_depth_m
   bool used_rotation_prediction = false;
+  bool used_stereo_clahe = false;  // stereo matching ran on CLAHE copies this frame
   double ms = 0.0;         // wall time of track(), milliseconds
 };
 
@@ -171,6 +187,8 @@ class PointTracker {
   void trackTemporal(double dt);
   void rejectOutliers(const std::vector<Vec2>& uv_prev);
   void replenish(const cv::Mat& image);
+  // Stereo matching of the current tracks; stereo_clahe: on CLAHE copies of both images (left: the raw left image).
+  void stereoPass(const cv::Mat& left, const cv::Mat& right, bool stereo_clahe);
   void matchStereo(const std::vector<cv::Mat>& pyr_left);
 
   PointTrackerOptions opt_;
@@ -187,6 +205,8 @@ class PointTracker {
   std::vector<cv::Mat> pyr_prev_, pyr_cur_, pyr_right_, pyr_left_stereo_;
   std::optional<Mat3> R_pred_;
   PointTrackerStats stats_;
+  bool stereo_clahe_on_ = true;     // adaptive stereo CLAHE: current state (starts on)
+  int frames_since_probe_ = 0;      // stereo frames with CLAHE on since the last raw try
 };
 
 }  // namespace linnet
