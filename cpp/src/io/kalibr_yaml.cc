@@ -102,9 +102,14 @@ void readIntrinsics(const SensorMap& m, CameraCalibration* c) {
   }
   const char* key = m.firstOf({"distortion_coefficients", "distortion_coeffs"});
   c->distortion_coeffs = m.get<std::vector<double>>(key);
-  if (c->distortion_coeffs.size() != expected)
-    m.context(key).fail(m.node(key), "must hold " + std::to_string(expected) + " values for '" + dist +
-                                         "', got " + std::to_string(c->distortion_coeffs.size()));
+  // radtan also takes k3 (OpenCV's order: k1 k2 p1 p2 k3).
+  const bool ok = c->distortion_coeffs.size() == expected ||
+                  (c->distortion == "radtan" && c->distortion_coeffs.size() == 5);
+  if (!ok) {
+    const std::string counts = c->distortion == "radtan" ? "4 or 5" : std::to_string(expected);
+    m.context(key).fail(m.node(key), "must hold " + counts + " values for '" + dist + "', got " +
+                                         std::to_string(c->distortion_coeffs.size()));
+  }
 }
 
 }  // namespace

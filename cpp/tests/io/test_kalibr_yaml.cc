@@ -137,6 +137,24 @@ TEST(KalibrYaml, CamchainErrorsNameKeyPaths) {
   }
   std::ofstream(dir / "d.yaml") << "camera_model: pinhole\n";
   EXPECT_THROW(readKalibrCamchain((dir / "d.yaml").string()), InputError);
+  // radtan: 4 (k1 k2 p1 p2) or 5 (with k3) coefficients.
+  std::ofstream(dir / "e.yaml") << "cam0:\n  camera_model: pinhole\n  intrinsics: [1, 1, 0, 0]\n"
+                                   "  resolution: [10, 10]\n  distortion_model: radtan\n"
+                                   "  distortion_coeffs: [0.1, -0.05, 0.001, 0.002, 0.01]\n"
+                                   "  T_cam_imu: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]\n";
+  EXPECT_EQ(readKalibrCamchain((dir / "e.yaml").string()).cameras.at(0).distortion_coeffs.size(), 5u);
+  std::ofstream(dir / "f.yaml") << "cam0:\n  camera_model: pinhole\n  intrinsics: [1, 1, 0, 0]\n"
+                                   "  resolution: [10, 10]\n  distortion_model: radtan\n"
+                                   "  distortion_coeffs: [0.1, -0.05, 0.001]\n"
+                                   "  T_cam_imu: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]\n";
+  try {
+    readKalibrCamchain((dir / "f.yaml").string());
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "f.yaml").string() +
+                                         ":6: key 'cam0.distortion_coeffs' must hold 4 or 5 values for "
+                                         "'radtan', got 3");
+  }
 }
 
 TEST(KalibrYaml, DatasetWithCamchainInsteadOfSensorYaml) {
