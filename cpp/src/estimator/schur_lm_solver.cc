@@ -2,6 +2,7 @@
 #include "linnet/estimator/schur_lm_solver.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -384,6 +385,7 @@ double SchurLmSolver::cost() {
 
 SchurLmSummary SchurLmSolver::solve(const SchurLmOptions& options) {
   options_ = options;
+  const auto t0 = std::chrono::steady_clock::now();
   prepare();
   SchurLmSummary sum;
   double cost = evaluate(true);
@@ -393,6 +395,7 @@ SchurLmSummary SchurLmSolver::solve(const SchurLmOptions& options) {
   double radius = options_.initial_radius, v = 2.0;
   Eigen::VectorXd dx_kept, dx_elim;
   for (int it = 0; it < options_.max_iterations; ++it) {
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > options_.max_time_s) break;
     ++sum.iterations;
     double model_decrease = 0.0;
     if (!computeStep(1.0 / radius, &dx_kept, &dx_elim, &model_decrease) || !(model_decrease > 0.0)) {

@@ -182,6 +182,22 @@ TEST(SchurLmSolver, FewIterationsDecreaseTheCostLikeCeres) {
   EXPECT_LE(s.final_cost, cs.final_cost * (1.0 + 1e-6));
 }
 
+TEST(SchurLmSolver, TimeBoundStopsBeforeTheFirstIteration) {
+  const ceres::HuberLoss huber(1.0);
+  const PoseManifold manifold;
+  Problem p = makeProblem(7, 0);
+  SchurLmSolver solver;
+  for (auto& b : p.poses) solver.addParameterBlock(b.data(), 7, &manifold, false);
+  for (double& d : p.inv_depth) solver.addParameterBlock(&d, 1, nullptr, true);
+  for (const auto& r : p.res) solver.addResidual(r.cost, r.robust ? &huber : nullptr, blocksOf(p, r));
+  SchurLmOptions o;
+  o.max_iterations = 10;
+  o.max_time_s = -1.0;  // already past
+  const SchurLmSummary s = solver.solve(o);
+  EXPECT_EQ(s.iterations, 0);
+  EXPECT_EQ(s.final_cost, s.initial_cost);
+}
+
 TEST(SchurLmSolver, MalformedProblemsThrow) {
   const PoseManifold manifold;
   Problem p = makeProblem(3, 0);

@@ -88,10 +88,10 @@ struct FailureOptions {
 struct SolverOptions {
   std::string engine = "schur_lm";   // per-frame window solve: "schur_lm" (Linnet's Levenberg-Marquardt with the
                                      // landmarks eliminated by Schur complement, schur_lm_solver.h) | "ceres" (Ceres
-                                     // with trust_region / linear_solver / max_solver_time_s below)
+                                     // with trust_region / linear_solver below)
   int max_num_iterations = 3;        // solver iterations per frame (the IMU prediction is a good start; full V1_02
                                      // replay: 3 vs 5 gives the same APE for ~15% less CPU)
-  double max_solver_time_s = 0.5;    // Ceres wall-time bound per frame, s (must not bind for bit-identical runs)
+  double max_solver_time_s = 0.5;    // solver wall-time bound per frame, s (must not bind for bit-identical runs)
   std::string trust_region = "dogleg";   // Ceres: "levenberg_marquardt" | "dogleg"
   std::string linear_solver = "dense_schur";  // Ceres: "dense_schur" | "sparse_normal_cholesky"
   double focal_length = 460.0;       // pixels per normalised unit: sqrt_info = focal_length / pixel_sigma
@@ -110,7 +110,7 @@ struct SolverOptions {
   void visit(V& v) {
     v.choice("engine", engine, "per-frame window solver", {"schur_lm", "ceres"});
     v("max_num_iterations", max_num_iterations, "solver iterations per frame", 1, 1000);
-    v("max_solver_time_s", max_solver_time_s, "Ceres time bound per frame, s", 0.001, 100.0);
+    v("max_solver_time_s", max_solver_time_s, "solver time bound per frame, s", 0.001, 100.0);
     v.choice("trust_region", trust_region, "Ceres trust-region strategy", {"levenberg_marquardt", "dogleg"});
     v.choice("linear_solver", linear_solver, "Ceres linear solver", {"dense_schur", "sparse_normal_cholesky"});
     v("focal_length", focal_length, "pixels per normalised unit", 1.0, 10000.0);

@@ -21,6 +21,8 @@ namespace linnet {
 
 struct SchurLmOptions {
   int max_iterations = 3;                 // LM iterations (each solves one linear system)
+  double max_time_s = 1e9;                // no new iteration starts after this much wall time, s (when it binds,
+                                          // results depend on the machine's speed)
   double initial_radius = 1e4;            // trust-region radius; the damping is 1 / radius times diag(J^T J)
   double min_relative_decrease = 1e-3;    // a step is accepted when the cost falls by at least this share of the
                                           // decrease the linear model predicts
