@@ -23,7 +23,11 @@ struct SchurLmOptions {
   int max_iterations = 3;                 // LM iterations (each solves one linear system)
   double max_time_s = 1e9;                // no new iteration starts after this much wall time, s (when it binds,
                                           // results depend on the machine's speed)
-  double initial_radius = 1e4;            // trust-region radius; the damping is 1 / radius times diag(J^T J)
+  double initial_radius = 1e8;            // trust-region radius; the damping is 1 / radius times diag(J^T J). Large:
+                                          // the first step is nearly Gauss-Newton (window problems are well posed
+                                          // thanks to their priors); with Ceres' 1e4 the damping slowed the
+                                          // convergence along weak directions (3 iterations: synthetic APE 8.5 vs
+                                          // 5.4 mm)
   double min_relative_decrease = 1e-3;    // a step is accepted when the cost falls by at least this share of the
                                           // decrease the linear model predicts
   double function_tolerance = 1e-6;       // stop when the relative cost change of a step is below this
