@@ -232,3 +232,23 @@ def test_bench_lines_on_the_simulator(tmp_path):
     assert out["temporal_judged"] > 100 and out["stereo_judged"] > 100
     assert out["temporal_precision"] >= 0.95 and out["stereo_precision"] >= 0.95
     assert 0.2 <= out["detection_recall"] <= 1.0
+
+
+def test_detection_recall_measures_endpoints_to_the_projected_line():
+    # Visible part ends at x=100 (sampled run end); the detection runs on along the true line to x=104.
+    run = _poly((0, 0), (100, 0))
+    full = _poly((-50, 0), (300, 0), 200)
+    det = np.array([[10, 0.5, 104, 0.5]])
+    assert lines.detection_recall(det, [run]) == (0, 1)
+    assert lines.detection_recall(det, [run], full_lines=[full]) == (1, 1)
+    assert lines.detection_recall(np.array([[10, 2.5, 104, 2.5]]), [run], full_lines=[full]) == (0, 1)
+
+
+def test_projected_line_passes_through_the_segment():
+    from linnet.sim.rig import EUROC_CAM0, project
+
+    a, b = np.array([-0.5, 0.2, 2.0]), np.array([0.6, 0.1, 3.0])
+    full = lines._projected_line(EUROC_CAM0, a, b, 752, 480)
+    seg = project(EUROC_CAM0, a + np.linspace(0, 1, 20)[:, None] * (b - a))
+    assert len(full) > 100
+    assert max(lines._polyline_param(full, p)[0] for p in seg) < 0.05

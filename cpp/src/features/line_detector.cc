@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
 
@@ -214,6 +216,33 @@ bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, Line
   // Principal direction of the 2x2 covariance.
   const double angle = 0.5 * std::atan2(2.0 * cto, ctt - coo);
   if (std::abs(angle) > 0.2) return false;  // more than ~11 degrees off: refinement found another structure
+  // A bent edge (lens distortion bends straight scene lines): a weighted quadratic o(u) = c0 + c1 u + c2 u^2,
+  // u = 2 t / len - 1, through the edge offsets. When its sagitta |c2| exceeds refine_bend_px, the endpoints are put
+  // on the fitted curve (the segment becomes a chord of the edge: both endpoints on the edge, so that they undistort
+  // onto the straight scene line) instead of on the straight total-least-squares fit, which passes a sagitta's
+  // fraction off the edge at both ends. Only when the samples span most of the segment (no long extrapolation).
+  if (count >= 6 && options.refine_bend_px < 50.0) {
+    double t_lo = len, t_hi = 0.0;
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (int i = 0; i < count; ++i) {
+      t_lo = std::min(t_lo, pts[i].t);
+      t_hi = std::max(t_hi, pts[i].t);
+      const double u = 2.0 * pts[i].t / len - 1.0;
+      const Eigen::Vector3d phi(1.0, u, u * u);
+      A += pts[i].w * phi * phi.transpose();
+      rhs += pts[i].w * pts[i].o * phi;
+    }
+    if (t_lo < 0.2 * len && t_hi > 0.8 * len) {
+      const Eigen::Vector3d c = A.ldlt().solve(rhs);
+      if (c.allFinite() && std::abs(c(2)) > options.refine_bend_px && std::abs(c(2)) < 0.05 * len) {
+        const Vec2 s0 = segment->s;
+        segment->s = s0 + (c(0) - c(1) + c(2)) * n;
+        segment->e = s0 + len * d + (c(0) + c(1) + c(2)) * n;
+        return true;
+      }
+    }
+  }
   const Vec2 centre = segment->s + mt * d + mo * n;
   const Vec2 new_d = std::cos(angle) * d + std::sin(angle) * n;
   const double ts = (segment->s - centre).dot(new_d), te = (segment->e - centre).dot(new_d);

@@ -29,6 +29,7 @@ struct LineDetectorOptions {
   double refine_step_px = 3.0;       // spacing of refinement samples along the segment, pixels
   int refine_max_samples = 24;       // refinement samples per segment (spread evenly when the segment is long)
   double refine_min_gradient = 4.0;  // weakest edge response used by the refinement, grey levels per pixel
+  double refine_bend_px = 0.25;      // sagitta of a bent edge above which endpoints follow the bend, pixels (>= 50: off)
 
   template <class V>
   void visit(V& v) {
@@ -47,6 +48,7 @@ struct LineDetectorOptions {
     v("refine_step_px", refine_step_px, "refinement sample spacing, pixels", 0.5, 50.0);
     v("refine_max_samples", refine_max_samples, "refinement samples per segment", 3, 1024);
     v("refine_min_gradient", refine_min_gradient, "weakest edge used by refinement, grey levels/pixel", 0.0, 255.0);
+    v("refine_bend_px", refine_bend_px, "sagitta above which endpoints follow a bent edge, pixels", 0.0, 1000.0);
   }
 };
 
