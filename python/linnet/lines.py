@@ -481,15 +481,33 @@ def _judge(a: set, b: set) -> tuple[int, int]:
     return int(bool(a & b)), 1
 
 
+def gyro_rotation(t_ns: np.ndarray, gyr: np.ndarray, t0: int, t1: int, R_B_C: np.ndarray) -> np.ndarray:
+    """Rotation of the camera from time t0 to t1 (p_C1 = R p_C0) from measured gyroscope rates, piecewise constant
+    from each sample to the next (as the pipeline's front-end does; the bias is left in: over one frame it moves a
+    line by far less than a pixel)."""
+    from linnet.sim.rotations import exp_so3
+
+    R_B0_B1 = np.eye(3)
+    k0 = max(0, int(np.searchsorted(t_ns, t0, side="right")) - 1)
+    for k in range(k0, len(t_ns) - 1):
+        a, b = max(int(t_ns[k]), t0), min(int(t_ns[k + 1]), t1)
+        if b > a:
+            R_B0_B1 = R_B0_B1 @ exp_so3(gyr[k] * ((b - a) * 1e-9))
+        if t_ns[k + 1] >= t1:
+            break
+    return R_B_C.T @ R_B0_B1.T @ R_B_C
+
+
 def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float = 0.0, seed: int = 0,
               options: Optional[dict] = None, tol_px: float = 2.0, min_length_px: float = 40.0,
-              min_contrast: float = 8.0, progress=None) -> dict:
+              min_contrast: float = 8.0, progress=None, gyro_prediction: bool = True) -> dict:
     """Renders the simulated replay (trajectory, scene) frame by frame, runs the LineTracker on it and scores it
     against the true 3D lines (see segment_labels for how a match is judged): detection recall (left image, all
     detections) over the segments that are unoccluded
     and (for `detection_recall`) show at least min_contrast grey levels across them (`detection_recall_unoccluded`
     counts every unoccluded one), temporal and stereo match precision (a match is correct when both sides lie on
-    the same true line), track lengths, timings."""
+    the same true line), track lengths, timings. With gyro_prediction the tracker gets each frame's rotation from
+    the replay's simulated (noisy, biased) gyroscope, as in the pipeline."""
     from linnet import _linnet
     from linnet.sim.simulator import _pose, prepare
 
@@ -521,6 +539,9 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
         radiance0 = renderers[0].render_radiance(native, T_W_C[0])
         gt = [visible_polylines(lines_W, c, T, d, min_length_px=min(min_length_px, 20.0), with_full=True)
               for c, T, d in zip(cams, T_W_C, depth)]
+        if gyro_prediction and k > 0:
+            tracker.set_rotation_prediction(gyro_rotation(rp.imu.t_ns, rp.imu.gyr, int(rp.cam_t[k - 1]), int(t),
+                                                          cams[0].T_B_C[:3, :3]))
         obs = tracker.track(int(t), imgs[0], imgs[1])
         tm = tracker.last_timings()
         dets = _linnet.detect_lines(imgs[0], det_opts)

@@ -28,24 +28,32 @@ double overlapRatio(double a0, double a1, double b0, double b1) {
 
 // Rejects matches whose normal displacement disagrees with a 4-DoF similarity flow fitted by RANSAC:
 // flow(m) = [a -b; b a] m + t, observed only along each line's normal: n . flow(m) = n . (mid_cur - mid_prev).
-void rejectFlowOutliers(const TemporalMatchOptions& options, const std::vector<LineSegment>& prev,
-                        const std::vector<LineSegment>& cur, const Vec2& centre, std::vector<int>* match_of_cur) {
+constexpr double kFlowScale = 1.0 / 400.0;  // conditions the rotation / scale columns of the flow model
+
+// One row of the flow model for the pair (p, c): A.row . x = y, with x = (a, b, tx, ty).
+void flowRow(const LineSegment& p, const LineSegment& c, const Vec2& centre, Eigen::Vector4d* a, double* y) {
+  // The previous midpoint, moved by the flow, must lie on the current line: cn . flow(m) = cn . (mid_cur - mid_prev).
+  const Vec2 cn = c.normal();
+  const Vec2 m = (p.midpoint() - centre) * kFlowScale;
+  *a << cn.dot(m), cn.dot(Vec2(-m.y(), m.x())), cn.x(), cn.y();
+  *y = (c.midpoint() - p.midpoint()).dot(cn);
+}
+
+// Returns true and the fitted flow when there were enough matches to fit it.
+bool rejectFlowOutliers(const TemporalMatchOptions& options, const std::vector<LineSegment>& prev,
+                        const std::vector<LineSegment>& cur, const Vec2& centre, std::vector<int>* match_of_cur,
+                        Eigen::Vector4d* flow) {
   std::vector<int> idx;
   for (int k = 0; k < static_cast<int>(match_of_cur->size()); ++k)
     if ((*match_of_cur)[k] >= 0) idx.push_back(k);
   const int n = static_cast<int>(idx.size());
-  if (n < 8) return;  // too few to tell outliers from motion
-  constexpr double kScale = 1.0 / 400.0;  // conditions the rotation / scale columns
+  if (n < 8) return false;  // too few to tell outliers from motion
   Eigen::MatrixXd A(n, 4);
   Eigen::VectorXd y(n);
   for (int r = 0; r < n; ++r) {
-    const LineSegment& p = prev[(*match_of_cur)[idx[r]]];
-    const LineSegment& c = cur[idx[r]];
-    // The previous midpoint, moved by the flow, must lie on the current line: cn . flow(m) = cn . (mid_cur - mid_prev).
-    const Vec2 cn = c.normal();
-    const Vec2 m = (p.midpoint() - centre) * kScale;
-    A.row(r) << cn.dot(m), cn.dot(Vec2(-m.y(), m.x())), cn.x(), cn.y();
-    y(r) = (c.midpoint() - p.midpoint()).dot(cn);
+    Eigen::Vector4d a;
+    flowRow(prev[(*match_of_cur)[idx[r]]], cur[idx[r]], centre, &a, &y(r));
+    A.row(r) = a.transpose();
   }
   std::mt19937 rng(static_cast<std::uint32_t>(options.ransac_seed));
   std::uniform_int_distribution<int> pick(0, n - 1);
@@ -76,7 +84,7 @@ void rejectFlowOutliers(const TemporalMatchOptions& options, const std::vector<L
       best = x;
     }
   }
-  if (best_inliers < 4) return;
+  if (best_inliers < 4) return false;
   // Refit on the inliers, then classify.
   const Eigen::ArrayXd res0 = (A * best - y).array().abs();
   const int ni = static_cast<int>((res0 < options.outlier_px).count());
@@ -91,6 +99,9 @@ void rejectFlowOutliers(const TemporalMatchOptions& options, const std::vector<L
   const Eigen::ArrayXd res = (A * refit - y).array().abs();
   for (int r = 0; r < n; ++r)
     if (!(res(r) < options.outlier_px)) (*match_of_cur)[idx[r]] = -1;
+  if (!refit.allFinite()) return false;
+  *flow = refit;
+  return true;
 }
 
 }  // namespace
@@ -158,7 +169,42 @@ int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSeg
   }
   selectMutualBest(static_cast<int>(cur.size()), static_cast<int>(prev.size()), cands, options.max_hamming,
                    options.ratio, match_of_cur);
-  if (options.reject_outliers) rejectFlowOutliers(options, prev, cur, centre, match_of_cur);
+  Eigen::Vector4d flow;
+  if (options.reject_outliers && rejectFlowOutliers(options, prev, cur, centre, match_of_cur, &flow) &&
+      options.guided_max_hamming > 0) {
+    // Guided pass: lines left unmatched on both sides, paired under the flow fitted on the confident matches with a
+    // tight gate (guided_px on the normal displacement, the angle and overlap gates as above) and a looser descriptor
+    // bound: LBD changes most where the view changes fast, which is where tracks were lost.
+    std::vector<char> prev_used(prev.size(), 0);
+    for (int m : *match_of_cur)
+      if (m >= 0) prev_used[m] = 1;
+    cands.clear();
+    for (int i = 0; i < static_cast<int>(cur.size()); ++i) {
+      if ((*match_of_cur)[i] >= 0) continue;
+      const LineSegment& c = cur[i];
+      const Vec2 dc = c.direction();
+      for (int j = 0; j < static_cast<int>(prev.size()); ++j) {
+        if (prev_used[j]) continue;
+        const LineSegment& p = prev[j];
+        const Vec2 dp = p.direction();
+        if (dp.dot(dc) < cos_max) continue;
+        Eigen::Vector4d a;
+        double y = 0.0;
+        flowRow(p, c, centre, &a, &y);
+        if (!(std::abs(a.dot(flow) - y) < options.guided_px)) continue;
+        if ((p.midpoint() - c.midpoint()).squaredNorm() > shift2) continue;
+        if (overlapRatio(0.0, p.length(), (c.s - p.s).dot(dp), (c.e - p.s).dot(dp)) < options.min_overlap) continue;
+        const int dist = hammingDistance(cur_desc(i), prev_desc[j]);
+        if (dist > options.guided_max_hamming) continue;
+        cands.push_back({i, j, dist});
+      }
+    }
+    std::vector<int> guided;
+    selectMutualBest(static_cast<int>(cur.size()), static_cast<int>(prev.size()), cands, options.guided_max_hamming,
+                     options.ratio, &guided);
+    for (int i = 0; i < static_cast<int>(cur.size()); ++i)
+      if (guided[i] >= 0) (*match_of_cur)[i] = guided[i];
+  }
   return static_cast<int>(std::count_if(match_of_cur->begin(), match_of_cur->end(), [](int m) { return m >= 0; }));
 }
 

@@ -95,6 +95,17 @@ bool LineTracker::undistortSegment(const CameraModel& cam, const LineSegment& px
   return cam.undistort(px.s, &uv->s) && cam.undistort(px.e, &uv->e) && (uv->e - uv->s).norm() > 1e-9;
 }
 
+bool LineTracker::rotateSegment(const Mat3& R_Ccur_Cprev, LineSegment* px) const {
+  LineSegment uv;
+  if (!undistortSegment(cam0_, *px, &uv)) return false;
+  LineSegment out;
+  if (!cam0_.project(R_Ccur_Cprev * Vec3(uv.s.x(), uv.s.y(), 1.0), &out.s) ||
+      !cam0_.project(R_Ccur_Cprev * Vec3(uv.e.x(), uv.e.y(), 1.0), &out.e) || !std::isfinite(out.s.sum() + out.e.sum()))
+    return false;
+  *px = out;
+  return true;
+}
+
 void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, std::vector<LineObservation>* lines) {
   const auto t_start = Clock::now();
   const double cpu_start = threadCpuMs();
@@ -130,9 +141,12 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   for (const Track& tr : tentative_) prev.push_back(&tr);
   std::vector<LineSegment> prev_segs(prev.size());
   std::vector<LbdDescriptor> prev_desc(prev.size());
+  std::optional<Mat3> R_pred;
+  R_pred.swap(R_pred_);
   for (std::size_t k = 0; k < prev.size(); ++k) {
     prev_segs[k] = prev[k]->px;
     prev_desc[k] = prev[k]->desc;
+    if (R_pred) rotateSegment(*R_pred, &prev_segs[k]);
   }
   std::vector<int> match_of_cur;
   const Vec2 centre(0.5 * (left.cols - 1), 0.5 * (left.rows - 1));
@@ -157,6 +171,7 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   for (std::size_t k = 0; k < prev.size(); ++k) {
     if (prev_matched[k] || prev[k]->tentative || prev[k]->missed + 1 > options_.max_missed) continue;
     Track t = *prev[k];
+    t.px = prev_segs[k];  // where the rotation prediction put it (unchanged without one)
     ++t.missed;
     lost.push_back(t);
   }

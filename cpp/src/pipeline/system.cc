@@ -133,7 +133,10 @@ struct System::Impl {
     try {
       while (std::optional<FrameInput> in = frames.pop()) {
         Mat3 R_Ccur_Cprev;
-        if (gyroRotation(in->t, &R_Ccur_Cprev)) points.setRotationPrediction(R_Ccur_Cprev);
+        if (gyroRotation(in->t, &R_Ccur_Cprev)) {
+          points.setRotationPrediction(R_Ccur_Cprev);
+          lines.setRotationPrediction(R_Ccur_Cprev);
+        }
         ObservationItem item;
         item.obs.t = in->t;
         item.obs.stereo = config.stereo;

@@ -204,6 +204,15 @@ class PyLineTracker {
     return observationsToDict(obs);
   }
 
+  void setRotationPrediction(const py::object& R) {
+    const F64Array M = R.cast<F64Array>();
+    if (M.ndim() != 2 || M.shape(0) != 3 || M.shape(1) != 3) throw UsageError("R_cur_prev must be a 3x3 array");
+    Mat3 m;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) m(r, c) = M.at(r, c);
+    tracker_->setRotationPrediction(m);
+  }
+
   py::dict lastTimings() const { return timingsToDict(tracker_->lastTimings()); }
 
   py::dict options() {
@@ -234,6 +243,8 @@ options: {"key.path": value} overrides of LineTrackerOptions, e.g. {"detection.d
       .def("track", &PyLineTracker::track, py::arg("t_ns"), py::arg("left"), py::arg("right") = py::none(),
            "Tracks one frame. Returns a dict of arrays (N lines, sorted by id): id, s0, e0 (normalised cam0), ps0, "
            "pe0 (pixels cam0), has_right, s1, e1, ps1, pe1 (cam1, valid where has_right), track_length.")
+      .def("set_rotation_prediction", &PyLineTracker::setRotationPrediction, py::arg("R_cur_prev"),
+           "Rotation of cam0 from the previous to the next frame (3x3, p_cur = R p_prev), used by the next track().")
       .def("last_timings", &PyLineTracker::lastTimings,
            "Stage wall times of the last frame (ms): detect, merge, describe, temporal, stereo, left, total; thread CPU "
            "times cpu_left, cpu_total; and counts.")

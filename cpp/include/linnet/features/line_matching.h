@@ -20,6 +20,8 @@ struct TemporalMatchOptions {
   double outlier_px = 12.0;       // residual normal displacement to call a match an outlier, pixels
   int ransac_iterations = 100;
   int ransac_seed = 7;            // fixed seed: determinism
+  int guided_max_hamming = 120;   // guided pass after the flow fit: descriptor bound, bits (0 = no guided pass)
+  double guided_px = 3.0;         // guided pass: normal displacement off the fitted flow, pixels
 
   template <class V>
   void visit(V& v) {
@@ -32,6 +34,8 @@ struct TemporalMatchOptions {
     v("outlier_px", outlier_px, "outlier threshold, pixels", 0.5, 500.0);
     v("ransac_iterations", ransac_iterations, "RANSAC iterations", 1, 100000);
     v("ransac_seed", ransac_seed, "RANSAC random seed", 0, 1 << 30);
+    v("guided_max_hamming", guided_max_hamming, "guided pass descriptor bound, bits (0 = off)", 0, 256);
+    v("guided_px", guided_px, "guided pass normal displacement off the flow, pixels", 0.1, 100.0);
   }
 };
 

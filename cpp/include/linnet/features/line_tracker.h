@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,12 @@ class LineTracker {
   /// `lines`, sorted by id. Throws UsageError for a wrong image type or size, or time going backwards.
   void track(Timestamp t, const cv::Mat& left, const cv::Mat& right, std::vector<LineObservation>* lines);
 
+  /// Optional prediction for the next track() call: rotation of cam0 from the previous to the current frame
+  /// (p_Ccur = R_Ccur_Cprev p_Cprev), e.g. from integrated gyroscope rates. The previous lines (and the lost ones
+  /// awaiting re-detection) are moved by the infinite homography K R K^-1 (through the distortion model) before
+  /// the geometric gates; translation is left to the gates and the flow RANSAC. Used once, then forgotten.
+  void setRotationPrediction(const Mat3& R_Ccur_Cprev) { R_pred_ = R_Ccur_Cprev; }
+
   const LineFrameTimings& lastTimings() const { return timings_; }
   const LineTrackerOptions& options() const { return options_; }
 
@@ -85,6 +92,8 @@ class LineTracker {
                       std::vector<char>* described, LineFrameTimings* tm);
   void refine(const cv::Mat& img, LineSegment* seg) const;
   bool undistortSegment(const CameraModel& cam, const LineSegment& px, LineSegment* uv) const;
+  // Moves a cam0 pixel segment by a pure rotation; false (segment untouched) when an endpoint cannot be mapped.
+  bool rotateSegment(const Mat3& R_Ccur_Cprev, LineSegment* px) const;
 
   LineTrackerOptions options_;
   const CameraModel& cam0_;
@@ -98,6 +107,7 @@ class LineTracker {
   Timestamp last_t_ = 0;
   bool has_last_ = false;
   LineFrameTimings timings_;
+  std::optional<Mat3> R_pred_;
   // Scratch buffers reused across frames.
   std::vector<LineSegment> segs_l_, segs_r_;
   std::vector<LbdDescriptor> desc_l_, desc_r_;
