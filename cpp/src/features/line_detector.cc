@@ -23,7 +23,110 @@ inline float bilinear(const cv::Mat& img, float x, float y) {
   return top + ay * (bot - top);
 }
 
+// True when `seg` repeats one of `others`: same orientation within ~3 degrees, both endpoints within 1.5 px of its
+// line, overlapping it by half of the shorter.
+bool duplicatesAny(const LineSegment& seg, const std::vector<LineSegment>& others) {
+  const Vec2 d = seg.direction(), m = seg.midpoint();
+  const double len = seg.length();
+  for (const LineSegment& o : others) {
+    const double lo = o.length();
+    if ((o.midpoint() - m).squaredNorm() > 0.25 * (len + lo) * (len + lo)) continue;
+    const Vec2 od = o.direction();
+    if (od.dot(d) < 0.9986) continue;
+    const Vec2 on(-od.y(), od.x());
+    if (std::abs((seg.s - o.s).dot(on)) > 1.5 || std::abs((seg.e - o.s).dot(on)) > 1.5) continue;
+    const double a = (seg.s - o.s).dot(od), b = (seg.e - o.s).dot(od);
+    const double inter = std::min(std::max(a, b), lo) - std::max(std::min(a, b), 0.0);
+    if (inter > 0.5 * std::min(len, lo)) return true;
+  }
+  return false;
+}
+
 }  // namespace
+
+int findParallelEdges(const cv::Mat& gray, const LineDetectorOptions& options, const LineSegment& segment,
+                      std::vector<LineSegment>* out) {
+  const double len = segment.length();
+  if (!(len > 1.0) || gray.empty()) return 0;
+  const Vec2 d = segment.direction(), n(-d.y(), d.x());
+  const int R = options.parallel_search_px;
+  const int K = std::clamp(static_cast<int>(len / 6.0), 4, 16);
+  const float hi_x = static_cast<float>(gray.cols) - 2.0f, hi_y = static_cast<float>(gray.rows) - 2.0f;
+  // Per side (0: -n, 1: +n) and polarity (0: gradient along -n, 1: along +n): the samples' (t, offset) hits.
+  struct Hit {
+    double t, o;
+  };
+  std::vector<Hit> hits[2][2][24];  // [side][polarity][|offset| bin]
+  int used = 0;
+  float prof[24], g[24];
+  for (int i = 0; i < K; ++i) {
+    const double t = (i + 0.5) * len / K;
+    const Vec2 p = segment.s + t * d;
+    const Vec2 q0 = p + (-R - 0.5) * n, q1 = p + (R + 0.5) * n;
+    if (std::min(q0.x(), q1.x()) < 1.0 || std::min(q0.y(), q1.y()) < 1.0 || std::max(q0.x(), q1.x()) > hi_x ||
+        std::max(q0.y(), q1.y()) > hi_y)
+      continue;
+    for (int o = -R - 1; o <= R; ++o) {  // prof[o + R + 1]: value at offset o + 0.5
+      const Vec2 q = p + (o + 0.5) * n;
+      prof[o + R + 1] = bilinear(gray, static_cast<float>(q.x()), static_cast<float>(q.y()));
+    }
+    for (int o = -R; o <= R; ++o) g[o + R] = prof[o + R + 1] - prof[o + R];  // derivative at offset o
+    int m = 0;
+    for (int o = -2; o <= 2; ++o)
+      if (g[o + R] > g[m + R]) m = o;
+    const float gm = g[m + R];
+    if (gm < options.refine_min_gradient) continue;
+    ++used;
+    const float thr = std::max(static_cast<float>(2.0 * options.refine_min_gradient),
+                               static_cast<float>(options.parallel_min_ratio) * gm);
+    for (int o = -R + 1; o <= R - 1; ++o) {
+      if (std::abs(o - m) < 2) continue;
+      const float a = std::abs(g[o + R]);
+      if (a < thr || a < std::abs(g[o + R - 1]) || a < std::abs(g[o + R + 1])) continue;
+      const double am = std::abs(g[o + R - 1]), ap = std::abs(g[o + R + 1]);
+      const double den = am - 2.0 * a + ap;
+      const double sub = den < -1e-9 ? std::clamp(0.5 * (am - ap) / den, -0.5, 0.5) : 0.0;
+      const int side = o > m ? 1 : 0, pol = g[o + R] > 0 ? 1 : 0;
+      hits[side][pol][std::abs(o)].push_back({t, o + sub});
+    }
+  }
+  if (used < 3) return 0;
+  const int need = std::max(3, static_cast<int>(std::ceil(options.parallel_min_votes * used)));
+  int added = 0;
+  for (int side = 0; side < 2; ++side) {
+    int best_pol = -1, best_bin = -1;
+    std::size_t best_count = 0;
+    for (int pol = 0; pol < 2; ++pol)
+      for (int b = 1; b <= R; ++b) {
+        std::size_t c = hits[side][pol][b].size() + hits[side][pol][b - 1].size() +
+                        (b < R ? hits[side][pol][b + 1].size() : 0);
+        if (c > best_count) {
+          best_count = c;
+          best_pol = pol;
+          best_bin = b;
+        }
+      }
+    if (static_cast<int>(best_count) < need) continue;
+    // Straight fit o = c0 + c1 t through the window's hits; extent: the span of the samples that saw it.
+    double sw = 0.0, st = 0.0, so = 0.0, stt = 0.0, sto = 0.0, t_lo = len, t_hi = 0.0;
+    for (int b = best_bin - 1; b <= std::min(R, best_bin + 1); ++b)
+      for (const Hit& h : hits[side][best_pol][b]) {
+        sw += 1.0, st += h.t, so += h.o, stt += h.t * h.t, sto += h.t * h.o;
+        t_lo = std::min(t_lo, h.t), t_hi = std::max(t_hi, h.t);
+      }
+    const double det = sw * stt - st * st;
+    if (!(det > 1e-9)) continue;
+    const double c1 = (sw * sto - st * so) / det, c0 = (so - c1 * st) / sw;
+    if (std::abs(c1) > 0.05) continue;  // not parallel (about 3 degrees)
+    const double half = 0.5 * len / K;
+    const double ta = std::max(0.0, t_lo - half), tb = std::min(len, t_hi + half);
+    LineSegment tw{segment.s + ta * d + (c0 + c1 * ta) * n, segment.s + tb * d + (c0 + c1 * tb) * n};
+    if (best_pol == 0) std::swap(tw.s, tw.e);  // gradient along -n: reverse to keep the orientation convention
+    out->push_back(tw);
+    ++added;
+  }
+  return added;
+}
 
 LineDetector::LineDetector(const LineDetectorOptions& options) : options_(options) {
   validateOptions(options_, "lines.detector");
@@ -100,8 +203,18 @@ void LineDetector::detect(const cv::Mat& gray, std::vector<LineSegment>* segment
       orientSegment(gray, options_, &seg);
     if (seg.length() >= options_.min_length_px) kept.push_back(seg);
   }
+  if (options_.parallel_edges) {
+    std::vector<LineSegment> twins;
+    for (const LineSegment& seg : kept) findParallelEdges(gray, options_, seg, &twins);
+    for (LineSegment& tw : twins) {
+      if (refine) refineSegment(gray, options_, &tw);
+      if (tw.length() < options_.min_length_px || duplicatesAny(tw, kept)) continue;
+      kept.push_back(tw);
+    }
+  }
   std::stable_sort(kept.begin(), kept.end(),
                    [](const LineSegment& a, const LineSegment& b) { return a.length() > b.length(); });
+  if (static_cast<int>(kept.size()) > options_.max_segments) kept.resize(options_.max_segments);
   segments->swap(kept);
 }
 

@@ -1,7 +1,9 @@
 // Line detection: accuracy on a synthetic scene, orientation convention, degenerate images, option errors.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
+#include <cmath>
 
 #include "features/test_line_scene.h"
 #include "linnet/core/error.h"
@@ -72,6 +74,54 @@ TEST(LineDetector, RefinementIsSubPixelOnAStraightEdge) {
   // Bright below: walking s -> e, the gradient points along +n = (-d.y, d.x) (downwards here), so s is on the left.
   EXPECT_LT(s.s.x(), s.e.x());
   EXPECT_GT(s.normal().y(), 0.0);
+}
+
+// A thin dark bar (two opposite edges `width` px apart along y = b + a (x - 100)) on a bright background, rendered
+// by pixel-area coverage. Returns the segments found on each of the two edges (within 0.5 px, > 300 px long).
+std::array<int, 2> detectBarEdges(const LineDetectorOptions& opt, double width, double far_grey = 170.0) {
+  const double a = 0.2, b = 220.0;
+  cv::Mat img(480, 752, CV_8UC1);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      double cover = 0.0;
+      for (int sy = 0; sy < 8; ++sy)
+        for (int sx = 0; sx < 8; ++sx) {
+          const double px = x - 0.5 + (sx + 0.5) / 8.0, py = y - 0.5 + (sy + 0.5) / 8.0;
+          const double above = py - (b + a * (px - 100.0));
+          const bool inside = px > 100.0 && px < 600.0;
+          cover += inside && above > 0.0 && above < width ? 60.0 : inside && above >= width ? far_grey : 170.0;
+        }
+      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(cover / 64.0);
+    }
+  cv::GaussianBlur(img, img, cv::Size(5, 5), 0.7);
+  LineDetector det(opt);
+  std::vector<LineSegment> segs;
+  det.detect(img, &segs);
+  std::array<int, 2> found{0, 0};
+  const Vec2 n = Vec2(-a, 1.0).normalized();
+  const double gap = width / std::sqrt(1.0 + a * a);  // the bar's width across it
+  for (const LineSegment& s : segs) {
+    if (s.length() < 300.0) continue;
+    const double ds = (s.s - Vec2(100.0, b)).dot(n), de = (s.e - Vec2(100.0, b)).dot(n);
+    for (int k = 0; k < 2; ++k) found[k] += std::abs(ds - k * gap) < 0.5 && std::abs(de - k * gap) < 0.5;
+  }
+  return found;
+}
+
+// Dark bar between a bright wall (170) and a mid-grey face (110): the half-size detection finds only the strong edge;
+// the parallel-edge search finds the weaker one too, within 0.5 px.
+TEST(LineDetector, ParallelEdgesOfThinBarsAreBothFound) {
+  LineDetectorOptions opt;
+  for (double width : {2.5, 3.5}) {
+    opt.parallel_edges = true;
+    const std::array<int, 2> with = detectBarEdges(opt, width, 110.0);
+    EXPECT_EQ(with[0], 1) << "width " << width;
+    EXPECT_EQ(with[1], 1) << "width " << width;
+    opt.parallel_edges = false;
+    const std::array<int, 2> without = detectBarEdges(opt, width, 110.0);
+    EXPECT_EQ(without[0], 1) << "width " << width;
+    EXPECT_EQ(without[1], 0) << "width " << width;
+  }
 }
 
 TEST(LineDetector, DegenerateImagesNeitherCrashNorHang) {

@@ -30,6 +30,10 @@ struct LineDetectorOptions {
   int refine_max_samples = 24;       // refinement samples per segment (spread evenly when the segment is long)
   double refine_min_gradient = 4.0;  // weakest edge response used by the refinement, grey levels per pixel
   double refine_bend_px = 0.25;      // sagitta of a bent edge above which endpoints follow the bend, pixels (>= 50: off)
+  bool parallel_edges = true;        // look beside each segment for a parallel edge the downsampled detection fused
+  int parallel_search_px = 6;        // +- search across the segment for a parallel edge, full-resolution pixels
+  double parallel_min_votes = 0.6;   // fraction of samples along the segment that must see the parallel edge
+  double parallel_min_ratio = 0.3;   // its gradient relative to the segment's own edge at the same sample
 
   template <class V>
   void visit(V& v) {
@@ -49,6 +53,10 @@ struct LineDetectorOptions {
     v("refine_max_samples", refine_max_samples, "refinement samples per segment", 3, 1024);
     v("refine_min_gradient", refine_min_gradient, "weakest edge used by refinement, grey levels/pixel", 0.0, 255.0);
     v("refine_bend_px", refine_bend_px, "sagitta above which endpoints follow a bent edge, pixels", 0.0, 1000.0);
+    v("parallel_edges", parallel_edges, "recover parallel edges fused by downsampled detection");
+    v("parallel_search_px", parallel_search_px, "parallel-edge search half-width, pixels", 2, 10);
+    v("parallel_min_votes", parallel_min_votes, "fraction of samples that must see the parallel edge", 0.1, 1.0);
+    v("parallel_min_ratio", parallel_min_ratio, "parallel edge gradient / own edge gradient", 0.05, 10.0);
   }
 };
 
@@ -85,5 +93,14 @@ class LineDetector {
 void orientSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment);
 
 bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment);
+
+/// Parallel edges beside an oriented segment, on the full-resolution image: thin bars (frames, trims, the two sides of
+/// a narrow gap) have two edges 2-6 px apart that a detector on a downsampled image fuses into one. The directional
+/// derivative across the segment is sampled along it; an extremum of either sign, at least 2 px from the segment's
+/// own edge and within parallel_search_px, seen at a consistent offset by parallel_min_votes of the samples, becomes
+/// a segment (fitted through those offsets, spanning the samples that saw it, oriented by its polarity). Appends at
+/// most one per side; returns how many.
+int findParallelEdges(const cv::Mat& gray, const LineDetectorOptions& options, const LineSegment& segment,
+                      std::vector<LineSegment>* out);
 
 }  // namespace linnet
