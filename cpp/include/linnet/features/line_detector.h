@@ -22,8 +22,8 @@ struct LineDetectorOptions {
   double edlines_sigma = 1.0;           // EDLines gaussian smoothing, pixels of the detection image
   int fld_canny_low = 50;               // FastLineDetector Canny thresholds, grey levels
   int fld_canny_high = 100;
-  double min_length_px = 30.0;       // shortest segment kept, full-resolution pixels
-  int max_segments = 150;            // the longest this many are kept per image
+  double min_length_px = 25.0;       // shortest segment kept, full-resolution pixels
+  int max_segments = 300;            // the longest this many are kept per image
   bool refine = true;                // sub-pixel refinement on the full-resolution image
   int refine_search_px = 2;          // +- search across the segment, pixels
   double refine_step_px = 3.0;       // spacing of refinement samples along the segment, pixels
