@@ -88,6 +88,31 @@ class EurocStereo:
         self.images = [(t, p, right.get(t)) for t, p in left if not self.stereo or t in right]
         if not self.images:
             raise DatasetError(f"{mav0 / 'cam0' / 'data.csv'}: no (stereo) images")
+        imu_csv = mav0 / "imu0" / "data.csv"
+        self.imu_path = imu_csv if imu_csv.is_file() else None
+        self._imu = None
+
+    def load_imu(self):
+        """imu0's samples (read once; None without imu0/data.csv). DatasetError names the file and line."""
+        if self.imu_path is not None and self._imu is None:
+            from linnet.sim.imu import load_real_imu
+            from linnet.sim.trajectory import InputError
+
+            try:
+                self._imu = load_real_imu(str(self.imu_path))
+            except InputError as e:
+                raise DatasetError(str(e).replace("--real-imu: ", "")) from None
+        return self._imu
+
+    def gyro_prediction(self, t0: int, t1: int) -> Optional[np.ndarray]:
+        """Rotation of cam0 from t0 to t1 (p_1 = R p_0) integrated from imu0's gyroscope, for
+        LineTracker.set_rotation_prediction; None when there is no IMU log or it does not cover [t0, t1]."""
+        imu = self.load_imu()
+        if imu is None:
+            return None
+        if t0 < imu.t_ns[0] or t1 > imu.t_ns[-1]:
+            return None
+        return gyro_rotation(imu.t_ns, imu.gyr, t0, t1, np.asarray(self.cam0["T_B_C"])[:3, :3])
 
     @property
     def T_C1_C0(self) -> Optional[np.ndarray]:

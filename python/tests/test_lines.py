@@ -171,6 +171,31 @@ def test_euroc_reader():
     assert left.shape == (480, 752) and right.shape == (480, 752) and left.dtype == np.uint8
 
 
+def test_gyro_prediction(tmp_path):
+    import shutil
+
+    data = lines.EurocStereo(_micro())
+    t0, t1 = data.images[0][0], data.images[1][0]
+    R = data.gyro_prediction(t0, t1)
+    assert R.shape == (3, 3) and np.allclose(R @ R.T, np.eye(3), atol=1e-9)
+    assert np.allclose(data.gyro_prediction(t0, t0), np.eye(3))
+    # Rates integrated over 50 ms: R is the camera-frame image of exp(w dt) (w: mean rate over the interval).
+    imu = data.load_imu()
+    keep = (imu.t_ns >= t0) & (imu.t_ns < t1)
+    w_C = np.asarray(data.cam0["T_B_C"])[:3, :3].T @ imu.gyr[keep].mean(0)
+    angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))
+    assert abs(angle - np.linalg.norm(w_C) * (t1 - t0) * 1e-9) < 2e-4
+    assert data.gyro_prediction(t0 - 10**12, t1) is None  # not covered by the log
+    # No imu0: no prediction. A malformed log: an error naming the file and line.
+    copy = tmp_path / "ds"
+    shutil.copytree(Path(data.root) / "mav0" / "cam0", copy / "mav0" / "cam0")
+    assert lines.EurocStereo(copy).gyro_prediction(t0, t1) is None
+    (copy / "mav0" / "imu0").mkdir()
+    (copy / "mav0" / "imu0" / "data.csv").write_text("#t,wx,wy,wz,ax,ay,az\n1,0,0,0,0,0\n")
+    with pytest.raises(lines.DatasetError, match=r"data.csv:2"):
+        lines.EurocStereo(copy).load_imu()
+
+
 def test_euroc_reader_errors(tmp_path):
     with pytest.raises(lines.DatasetError, match="sensor.yaml"):
         lines.EurocStereo(tmp_path)

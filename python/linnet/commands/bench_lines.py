@@ -24,6 +24,8 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
     data = lines.EurocStereo(dataset)
     start, stop = lines.parse_frames(frames, len(data))
     images = list(data.frames(start, stop))  # decode once: the loop times only the tracker
+    # The gyroscope's rotation between frames (as the pipeline hands the tracker), when the dataset has imu0.
+    rotations = [None] + [data.gyro_prediction(images[k - 1][0], images[k][0]) for k in range(1, len(images))]
     series = {s: [] for s in STAGES}
     counts = {"lines": [], "stereo_matched": [], "tracked": [], "new_lines": [], "detected_left": [],
               "detected_right": []}
@@ -31,7 +33,11 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
     tracker = None
     for rep in range(repeat):
         tracker = lines.make_tracker(data, options, mono=mono)
-        for t_ns, left, right in images:
+        for k, (t_ns, left, right) in enumerate(images):
+            if k > 0:
+                R = rotations[k]
+                if R is not None:
+                    tracker.set_rotation_prediction(R)
             obs = tracker.track(t_ns, left, None if mono else right)
             tm = tracker.last_timings()
             for s in STAGES:

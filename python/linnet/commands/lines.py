@@ -40,6 +40,7 @@ def COMMAND(dataset, out_dir, frames, detector, max_lines, mono, no_png):
     try:
         data = lines.EurocStereo(dataset)
         start, stop = lines.parse_frames(frames, len(data))
+        data.load_imu()
     except lines.DatasetError as e:
         raise click.ClickException(str(e)) from e
     except ValueError as e:
@@ -47,7 +48,12 @@ def COMMAND(dataset, out_dir, frames, detector, max_lines, mono, no_png):
     tracker = lines.make_tracker(data, _options(detector, max_lines), mono=mono)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
+    prev_t = None
     for k, (t_ns, left, right) in enumerate(data.frames(start, stop), start=start):
+        R = data.gyro_prediction(prev_t, t_ns) if prev_t is not None else None
+        if R is not None:  # the gyroscope's rotation since the previous frame, as the pipeline gives it
+            tracker.set_rotation_prediction(R)
+        prev_t = t_ns
         obs = tracker.track(t_ns, left, None if mono else right)
         tm = tracker.last_timings()
         rows.append((k, t_ns, len(obs["id"]), tm["stereo_matched"], tm["tracked"], tm["new_lines"],
