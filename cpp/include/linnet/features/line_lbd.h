@@ -22,7 +22,7 @@ inline constexpr int kLbdBandWidth = 7;  // w, pixels
 inline constexpr int kLbdFloats = 8 * kLbdBands;
 
 struct LbdOptions {
-  int max_samples = 24;     // samples along the segment per row (evenly spaced; fewer when the segment is shorter)
+  int max_samples = 16;     // samples along the segment per row (evenly spaced; fewer when the segment is shorter)
   double clamp = 0.4;       // clamp of the normalised float descriptor (Zhang & Koch)
 
   template <class V>
