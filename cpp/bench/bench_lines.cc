@@ -142,6 +142,27 @@ void BM_LinesDetectEdlinesHalf(benchmark::State& state) { runDetector(state, "ed
 void BM_LinesDetectEdlinesFull(benchmark::State& state) { runDetector(state, "edlines", 1); }
 void BM_LinesDetectFldHalf(benchmark::State& state) { runDetector(state, "fld", 2); }
 void BM_LinesDetectLsd(benchmark::State& state) { runDetector(state, "lsd", 1); }
+void BM_LinesDetectEdFull(benchmark::State& state) { runDetector(state, "ed", 1); }
+
+// Edge Drawing + line fit alone (no refinement, orientation or parallel edges), full resolution.
+void BM_LinesEdgeDrawingRaw(benchmark::State& state) {
+  const LinesMicro& m = linesMicro();
+  if (!m.ok) {
+    state.SkipWithError("EuRoC micro set not found (set LINNET_SHARED_DATA)");
+    return;
+  }
+  linnet::EdgeDrawing ed{linnet::EdgeDrawingOptions{}};
+  std::vector<cv::Vec4f> lines;
+  std::size_t k = 0;
+  double n = 0.0, frames = 0.0;
+  for (auto _ : state) {
+    ed.detect(m.left[k], &lines);
+    n += static_cast<double>(lines.size());
+    frames += 1.0;
+    k = (k + 1) % m.left.size();
+  }
+  state.counters["lines"] = frames > 0 ? n / frames : 0.0;
+}
 
 void BM_LinesLbd100(benchmark::State& state) {
   const LinesMicro& m = linesMicro();
@@ -171,5 +192,7 @@ BENCHMARK(BM_LinesTrackStereoLsd)->Unit(benchmark::kMillisecond)->MeasureProcess
 BENCHMARK(BM_LinesDetectEdlinesHalf)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesDetectEdlinesFull)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesDetectFldHalf)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
+BENCHMARK(BM_LinesDetectEdFull)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
+BENCHMARK(BM_LinesEdgeDrawingRaw)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesDetectLsd)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesLbd100)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();

@@ -138,6 +138,15 @@ LineDetector::LineDetector(const LineDetectorOptions& options) : options_(option
     const float min_len = static_cast<float>(options_.min_length_px / options_.downsample * 0.7);
     fld_ = cv::ximgproc::createFastLineDetector(static_cast<int>(std::max(4.0f, min_len)), 1.41421356f,
                                                 options_.fld_canny_low, options_.fld_canny_high, 3, false);
+  } else if (options_.detector == "ed") {
+    EdgeDrawingOptions e;
+    e.sigma = options_.ed_sigma;
+    e.gradient_threshold = options_.ed_gradient_threshold;
+    e.anchor_threshold = options_.ed_anchor_threshold;
+    e.scan_interval = options_.ed_scan_interval;
+    e.fit_error_px = options_.ed_fit_error_px;
+    e.min_line_px = std::max(4, static_cast<int>(options_.min_length_px / options_.downsample * 0.7));
+    own_ed_ = std::make_unique<EdgeDrawing>(e);
   } else {
     ed_ = cv::ximgproc::createEdgeDrawing();
     cv::ximgproc::EdgeDrawing::Params p;
@@ -152,10 +161,12 @@ LineDetector::LineDetector(const LineDetectorOptions& options) : options_(option
 
 void LineDetector::detectRaw(const cv::Mat& gray, std::vector<cv::Vec4f>* raw) {
   raw->clear();
-  const int f = options_.downsample;
+  const double f = options_.downsample;
+  const bool integer = std::abs(f - std::round(f)) < 1e-9;
   const cv::Mat* input = &gray;
-  if (f > 1) {
-    cv::resize(gray, small_, cv::Size(gray.cols / f, gray.rows / f), 0.0, 0.0, cv::INTER_AREA);
+  if (f > 1.0) {
+    const cv::Size size(static_cast<int>(gray.cols / f), static_cast<int>(gray.rows / f));
+    cv::resize(gray, small_, size, 0.0, 0.0, integer ? cv::INTER_AREA : cv::INTER_LINEAR);
     input = &small_;
   }
   if (input->cols < 8 || input->rows < 8) return;
@@ -163,15 +174,21 @@ void LineDetector::detectRaw(const cv::Mat& gray, std::vector<cv::Vec4f>* raw) {
     lsd_->detect(*input, *raw);
   } else if (fld_) {
     fld_->detect(*input, *raw);
+  } else if (own_ed_) {
+    own_ed_->detect(*input, raw);
   } else {
     ed_->detectEdges(*input);
     ed_->detectLines(*raw);
   }
-  if (f > 1) {
-    // INTER_AREA: pixel u of the small image covers full-resolution pixels f*u .. f*u + f - 1.
-    const float scale = static_cast<float>(f), offset = 0.5f * static_cast<float>(f - 1);
+  if (f > 1.0) {
+    // Pixel centres: small-image u sits at full-resolution x = f (u + 1/2) - 1/2 (INTER_AREA with an integer f: the
+    // mean of pixels f u .. f u + f - 1; INTER_LINEAR: the same centre convention). The size was rounded down, so
+    // the actual factor per axis is used.
+    const float sx = static_cast<float>(gray.cols) / static_cast<float>(input->cols);
+    const float sy = static_cast<float>(gray.rows) / static_cast<float>(input->rows);
+    const float scale[2] = {integer ? static_cast<float>(f) : sx, integer ? static_cast<float>(f) : sy};
     for (cv::Vec4f& l : *raw)
-      for (int k = 0; k < 4; ++k) l[k] = l[k] * scale + offset;
+      for (int k = 0; k < 4; ++k) l[k] = (l[k] + 0.5f) * scale[k % 2] - 0.5f;
   }
 }
 

@@ -22,7 +22,7 @@ TEST_P(DetectorTest, FindsSceneEdgesWithinTwoPixels) {
   const cv::Mat img = testing::renderScene(scene, cam, Pose(), 2.0, 1);
   LineDetectorOptions opt;
   opt.detector = GetParam();
-  if (opt.detector == "lsd") opt.downsample = 1;
+  if (opt.detector == "lsd" || opt.detector == "ed") opt.downsample = 1;
   LineDetector det(opt);
   std::vector<LineSegment> segs;
   det.detect(img, &segs);
@@ -37,7 +37,7 @@ TEST_P(DetectorTest, FindsSceneEdgesWithinTwoPixels) {
   for (std::size_t k = 1; k < segs.size(); ++k) EXPECT_GE(segs[k - 1].length(), segs[k].length());
 }
 
-INSTANTIATE_TEST_SUITE_P(AllDetectors, DetectorTest, ::testing::Values("edlines", "fld", "lsd"));
+INSTANTIATE_TEST_SUITE_P(AllDetectors, DetectorTest, ::testing::Values("ed", "edlines", "fld", "lsd"));
 
 TEST(LineDetector, RefinementIsSubPixelOnAStraightEdge) {
   // A dark / bright step along the line y = b + a (x - 100), rendered by exact pixel-area coverage (each pixel
@@ -129,7 +129,7 @@ TEST(LineDetector, DegenerateImagesNeitherCrashNorHang) {
   cv::Mat noise(480, 752, CV_8UC1);
   cv::RNG rng(5);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
-  for (const std::string name : {"edlines", "fld", "lsd"}) {
+  for (const std::string name : {"ed", "edlines", "fld", "lsd"}) {
     LineDetectorOptions opt;
     opt.detector = name;
     LineDetector det(opt);

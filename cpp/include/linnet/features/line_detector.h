@@ -2,6 +2,7 @@
 // optionally on a downsampled image, followed by a sub-pixel refinement of every segment at full resolution.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -9,17 +10,26 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/ximgproc.hpp>
 
+#include "linnet/features/edge_drawing.h"
 #include "linnet/features/line_types.h"
 
 namespace linnet {
 
 struct LineDetectorOptions {
-  std::string detector = "edlines";  // "edlines" (EDLines, Akinlar & Topal 2011) | "fld" | "lsd" (von Gioi et al. 2012)
-  int downsample = 2;                // detect on the image shrunk by this integer factor (1 = full resolution)
+  // "ed" (Edge Drawing + EDLines' fit written here, see edge_drawing.h) | "edlines" (OpenCV ximgproc EdgeDrawing) |
+  // "fld" (OpenCV FastLineDetector) | "lsd" (von Gioi et al. 2012, the thesis' detector)
+  std::string detector = "edlines";
+  double downsample = 2.0;           // detect on the image shrunk by this factor (1 = full resolution; integers: pixel
+                                     // averaging, otherwise bilinear)
   double lsd_scale = 0.8;            // LSD's own gaussian downsampling (thesis 3.1.1), used by "lsd" only
   int edlines_gradient_threshold = 20;  // EDLines gradient threshold, grey levels
   int edlines_anchor_threshold = 0;     // EDLines anchor threshold, grey levels
   double edlines_sigma = 1.0;           // EDLines gaussian smoothing, pixels of the detection image
+  double ed_sigma = 1.0;                // "ed": gaussian smoothing, pixels of the detection image
+  int ed_gradient_threshold = 36;       // "ed": weakest 3x3 Sobel |gx| + |gy| on an edge (4x grey-level steps)
+  int ed_anchor_threshold = 0;          // "ed": anchor's excess over its neighbours across the edge
+  int ed_scan_interval = 1;             // "ed": anchors looked for on every n-th row and column
+  double ed_fit_error_px = 1.0;         // "ed": largest distance of an edge pixel from its line, detection pixels
   int fld_canny_low = 50;               // FastLineDetector Canny thresholds, grey levels
   int fld_canny_high = 100;
   double min_length_px = 25.0;       // shortest segment kept, full-resolution pixels
@@ -37,12 +47,17 @@ struct LineDetectorOptions {
 
   template <class V>
   void visit(V& v) {
-    v.choice("detector", detector, "line detector", {"edlines", "fld", "lsd"});
-    v("downsample", downsample, "detection on the image shrunk by this factor", 1, 4);
+    v.choice("detector", detector, "line detector", {"ed", "edlines", "fld", "lsd"});
+    v("downsample", downsample, "detection on the image shrunk by this factor", 1.0, 4.0);
     v("lsd_scale", lsd_scale, "LSD gaussian downsampling factor", 0.1, 1.0);
     v("edlines_gradient_threshold", edlines_gradient_threshold, "EDLines gradient threshold, grey levels", 1, 255);
     v("edlines_anchor_threshold", edlines_anchor_threshold, "EDLines anchor threshold, grey levels", 0, 255);
     v("edlines_sigma", edlines_sigma, "EDLines gaussian sigma, pixels", 0.0, 5.0);
+    v("ed_sigma", ed_sigma, "ed: gaussian sigma, pixels", 0.0, 5.0);
+    v("ed_gradient_threshold", ed_gradient_threshold, "ed: Sobel |gx|+|gy| threshold", 1, 4080);
+    v("ed_anchor_threshold", ed_anchor_threshold, "ed: anchor threshold", 0, 4080);
+    v("ed_scan_interval", ed_scan_interval, "ed: anchor scan interval, pixels", 1, 8);
+    v("ed_fit_error_px", ed_fit_error_px, "ed: line fit tolerance, pixels", 0.2, 5.0);
     v("fld_canny_low", fld_canny_low, "FLD Canny low threshold", 1, 1000);
     v("fld_canny_high", fld_canny_high, "FLD Canny high threshold", 1, 1000);
     v("min_length_px", min_length_px, "minimum segment length, pixels", 2.0, 10000.0);
@@ -81,6 +96,7 @@ class LineDetector {
   cv::Ptr<cv::LineSegmentDetector> lsd_;
   cv::Ptr<cv::ximgproc::FastLineDetector> fld_;
   cv::Ptr<cv::ximgproc::EdgeDrawing> ed_;
+  std::unique_ptr<EdgeDrawing> own_ed_;
   cv::Mat small_;
   std::vector<cv::Vec4f> raw_;
 };

@@ -1,0 +1,219 @@
+// Edge Drawing edge chains and EDLines line pieces (see edge_drawing.h).
+#include "linnet/features/edge_drawing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+#include <opencv2/imgproc.hpp>
+
+namespace linnet {
+namespace {
+
+// Least-squares line through a set of points given by its sums (count, x, y, xx, yy, xy): centroid, unit direction
+// and the mean squared distance of the points from the line (the covariance's smaller eigenvalue).
+struct LineFit {
+  double cx = 0.0, cy = 0.0, dx = 1.0, dy = 0.0, mse = 0.0;
+};
+
+LineFit fitFromSums(double n, double sx, double sy, double sxx, double syy, double sxy) {
+  LineFit f;
+  f.cx = sx / n;
+  f.cy = sy / n;
+  const double a = sxx / n - f.cx * f.cx, c = syy / n - f.cy * f.cy, b = sxy / n - f.cx * f.cy;
+  const double half = 0.5 * (a - c), root = std::sqrt(half * half + b * b);
+  f.mse = std::max(0.0, 0.5 * (a + c) - root);
+  // Eigenvector of the larger eigenvalue a + c over 2 + root: (b, lambda - a) or (lambda - c, b), the better scaled.
+  const double lambda = 0.5 * (a + c) + root;
+  double vx = b, vy = lambda - a;
+  if (std::abs(lambda - c) > std::abs(vy)) {
+    vx = lambda - c;
+    vy = b;
+  }
+  const double norm = std::hypot(vx, vy);
+  if (norm > 1e-12) {
+    f.dx = vx / norm;
+    f.dy = vy / norm;
+  } else {  // isotropic (a single point or a perfect square): any direction, take x
+    f.dx = 1.0;
+    f.dy = 0.0;
+  }
+  return f;
+}
+
+inline double distance(const LineFit& f, double x, double y) { return std::abs((x - f.cx) * f.dy - (y - f.cy) * f.dx); }
+
+}  // namespace
+
+void EdgeDrawing::detect(const cv::Mat& gray, std::vector<cv::Vec4f>* lines) {
+  lines->clear();
+  chains_.clear();
+  if (gray.cols < 8 || gray.rows < 8) return;
+  gradient(gray);
+  link();
+  for (const std::vector<cv::Point>& chain : chains_) fitLines(chain, lines);
+}
+
+void EdgeDrawing::gradient(const cv::Mat& gray) {
+  const cv::Mat* src = &gray;
+  if (options_.sigma > 0.0) {
+    const int k = 2 * static_cast<int>(std::ceil(2.0 * options_.sigma)) + 1;
+    cv::GaussianBlur(gray, smooth_, cv::Size(k, k), options_.sigma, options_.sigma, cv::BORDER_REPLICATE);
+    src = &smooth_;
+  }
+  cv::Sobel(*src, gx_, CV_16S, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(*src, gy_, CV_16S, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  const int rows = gray.rows, cols = gray.cols;
+  mag_.create(rows, cols, CV_16U);
+  dir_.create(rows, cols, CV_8U);
+  const int threshold = options_.gradient_threshold;
+  for (int y = 0; y < rows; ++y) {
+    const std::int16_t* px = gx_.ptr<std::int16_t>(y);
+    const std::int16_t* py = gy_.ptr<std::int16_t>(y);
+    std::uint16_t* m = mag_.ptr<std::uint16_t>(y);
+    std::uint8_t* d = dir_.ptr<std::uint8_t>(y);
+    for (int x = 0; x < cols; ++x) {
+      const int ax = std::abs(static_cast<int>(px[x])), ay = std::abs(static_cast<int>(py[x]));
+      const int g = ax + ay;
+      m[x] = static_cast<std::uint16_t>(g >= threshold ? g : 0);
+      d[x] = static_cast<std::uint8_t>(ax >= ay);
+    }
+    m[0] = m[cols - 1] = 0;  // the walk never steps onto the border, so its neighbours are always inside
+  }
+  std::fill_n(mag_.ptr<std::uint16_t>(0), cols, 0);
+  std::fill_n(mag_.ptr<std::uint16_t>(rows - 1), cols, 0);
+}
+
+void EdgeDrawing::link() {
+  const int rows = mag_.rows, cols = mag_.cols;
+  const int step = std::max(1, options_.scan_interval), A = options_.anchor_threshold;
+  anchors_.clear();
+  int max_mag = 0;
+  for (int y = 1; y < rows - 1; y += step) {
+    const std::uint16_t* m = mag_.ptr<std::uint16_t>(y);
+    const std::uint16_t* up = mag_.ptr<std::uint16_t>(y - 1);
+    const std::uint16_t* dn = mag_.ptr<std::uint16_t>(y + 1);
+    const std::uint8_t* d = dir_.ptr<std::uint8_t>(y);
+    for (int x = 1; x < cols - 1; x += step) {
+      const int g = m[x];
+      if (g == 0) continue;
+      const bool ridge = d[x] ? (g - m[x - 1] >= A && g - m[x + 1] >= A) : (g - up[x] >= A && g - dn[x] >= A);
+      if (!ridge) continue;
+      anchors_.push_back(y * cols + x);
+      max_mag = std::max(max_mag, g);
+    }
+  }
+  // Strongest anchors first (counting sort on the magnitude): chains grow from the clearest edges.
+  bucket_start_.assign(static_cast<std::size_t>(max_mag) + 2, 0);
+  const std::uint16_t* mag = mag_.ptr<std::uint16_t>(0);
+  for (int a : anchors_) ++bucket_start_[max_mag - mag[a] + 1];
+  for (std::size_t i = 1; i < bucket_start_.size(); ++i) bucket_start_[i] += bucket_start_[i - 1];
+  sorted_.resize(anchors_.size());
+  for (int a : anchors_) sorted_[bucket_start_[max_mag - mag[a]]++] = a;
+
+  edge_.create(rows, cols, CV_8U);
+  edge_.setTo(0);
+  const std::uint8_t* dir = dir_.ptr<std::uint8_t>(0);
+  std::uint8_t* edge = edge_.ptr<std::uint8_t>(0);
+  const std::size_t min_chain = static_cast<std::size_t>(std::max(2, options_.min_line_px));
+  for (int a : sorted_) {
+    if (edge[a]) continue;
+    const int x = a % cols, y = a / cols;
+    edge[a] = 1;
+    left_.clear();
+    right_.clear();
+    if (dir[a]) {  // vertical edge: walk up and down
+      walk(x, y, 0, -1, &left_);
+      walk(x, y, 0, 1, &right_);
+    } else {
+      walk(x, y, -1, 0, &left_);
+      walk(x, y, 1, 0, &right_);
+    }
+    if (left_.size() + right_.size() + 1 < min_chain) continue;
+    std::vector<cv::Point> chain;
+    chain.reserve(left_.size() + right_.size() + 1);
+    chain.insert(chain.end(), left_.rbegin(), left_.rend());
+    chain.emplace_back(x, y);
+    chain.insert(chain.end(), right_.begin(), right_.end());
+    chains_.push_back(std::move(chain));
+  }
+}
+
+void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out) {
+  const int cols = mag_.cols;
+  const std::uint16_t* mag = mag_.ptr<std::uint16_t>(0);
+  const std::uint8_t* dir = dir_.ptr<std::uint8_t>(0);
+  std::uint8_t* edge = edge_.ptr<std::uint8_t>(0);
+  for (;;) {
+    // The three pixels ahead: straight on first, so that it wins ties.
+    int best = -1, best_g = 0, best_side = 0;
+    for (int side : {0, -1, 1}) {
+      const int nx = x + dx + (dx == 0 ? side : 0), ny = y + dy + (dy == 0 ? side : 0);
+      const int i = ny * cols + nx;
+      if (mag[i] > best_g) {
+        best_g = mag[i];
+        best = i;
+        best_side = side;
+      }
+    }
+    if (best < 0 || edge[best]) return;  // below threshold, or ran into a chain already drawn
+    x = best % cols;
+    y = best / cols;
+    edge[best] = 1;
+    out->emplace_back(x, y);
+    // The edge turned: continue along its new orientation, away from where the step came from.
+    const bool vertical = dir[best] != 0;
+    if (vertical && dx != 0) {
+      dy = best_side != 0 ? best_side : (mag[best - cols] >= mag[best + cols] ? -1 : 1);
+      dx = 0;
+    } else if (!vertical && dy != 0) {
+      dx = best_side != 0 ? best_side : (mag[best - 1] >= mag[best + 1] ? -1 : 1);
+      dy = 0;
+    }
+  }
+}
+
+void EdgeDrawing::fitLines(const std::vector<cv::Point>& chain, std::vector<cv::Vec4f>* lines) const {
+  const int n = static_cast<int>(chain.size()), L = std::max(2, options_.min_line_px);
+  if (n < L) return;
+  const double tol = options_.fit_error_px, tol2 = tol * tol;
+  // Coordinates relative to the chain's first pixel keep the sums well conditioned.
+  const double ox = chain[0].x, oy = chain[0].y;
+  int i = 0;
+  while (n - i >= L) {
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    for (int k = i; k < i + L; ++k) {
+      const double x = chain[k].x - ox, y = chain[k].y - oy;
+      sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
+    }
+    LineFit f = fitFromSums(L, sx, sy, sxx, syy, sxy);
+    if (f.mse > tol2) {
+      ++i;
+      continue;
+    }
+    double cnt = L;
+    int last = i + L - 1, misses = 0, since_fit = 0;
+    for (int j = i + L; j < n; ++j) {
+      const double x = chain[j].x - ox, y = chain[j].y - oy;
+      if (distance(f, x, y) > tol) {
+        if (++misses > options_.max_outliers) break;
+        continue;
+      }
+      misses = 0;
+      last = j;
+      cnt += 1.0, sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
+      if (++since_fit >= 8) {  // refit as the piece grows, so that a slow bend is followed only a little
+        f = fitFromSums(cnt, sx, sy, sxx, syy, sxy);
+        since_fit = 0;
+      }
+    }
+    f = fitFromSums(cnt, sx, sy, sxx, syy, sxy);
+    const double t0 = (chain[i].x - ox - f.cx) * f.dx + (chain[i].y - oy - f.cy) * f.dy;
+    const double t1 = (chain[last].x - ox - f.cx) * f.dx + (chain[last].y - oy - f.cy) * f.dy;
+    lines->emplace_back(static_cast<float>(ox + f.cx + t0 * f.dx), static_cast<float>(oy + f.cy + t0 * f.dy),
+                        static_cast<float>(ox + f.cx + t1 * f.dx), static_cast<float>(oy + f.cy + t1 * f.dy));
+    i = last + 1;
+  }
+}
+
+}  // namespace linnet
