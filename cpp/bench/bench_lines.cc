@@ -91,7 +91,7 @@ void runTracker(benchmark::State& state, bool stereo, const std::string& detecto
   const linnet::Pose T_C1_C0 = m.c1.T_B_C.inverse() * m.c0.T_B_C;
   linnet::LineTrackerOptions opt;
   opt.detection.detector = detector;
-  if (detector == "lsd") opt.detection.downsample = 1;
+  opt.detection.downsample = (detector == "edlines" || detector == "fld") ? 2.0 : 1.0;
   auto tracker = std::make_unique<linnet::LineTracker>(opt, *cam0, stereo ? cam1.get() : nullptr, T_C1_C0);
   std::size_t k = 0;
   std::int64_t offset = 0;
@@ -111,8 +111,9 @@ void runTracker(benchmark::State& state, bool stereo, const std::string& detecto
   state.counters["lines"] = frames > 0 ? lines / frames : 0.0;
 }
 
-void BM_LinesTrackStereo(benchmark::State& state) { runTracker(state, true, "edlines"); }
-void BM_LinesTrackMono(benchmark::State& state) { runTracker(state, false, "edlines"); }
+void BM_LinesTrackStereo(benchmark::State& state) { runTracker(state, true, "ed"); }
+void BM_LinesTrackStereoEdlines(benchmark::State& state) { runTracker(state, true, "edlines"); }
+void BM_LinesTrackMono(benchmark::State& state) { runTracker(state, false, "ed"); }
 void BM_LinesTrackStereoFld(benchmark::State& state) { runTracker(state, true, "fld"); }
 void BM_LinesTrackStereoLsd(benchmark::State& state) { runTracker(state, true, "lsd"); }
 
@@ -144,14 +145,18 @@ void BM_LinesDetectFldHalf(benchmark::State& state) { runDetector(state, "fld", 
 void BM_LinesDetectLsd(benchmark::State& state) { runDetector(state, "lsd", 1); }
 void BM_LinesDetectEdFull(benchmark::State& state) { runDetector(state, "ed", 1); }
 
-// Edge Drawing + line fit alone (no refinement, orientation or parallel edges), full resolution.
+// Edge Drawing + line fit alone (no refinement, orientation or parallel edges), full resolution; arguments: anchor
+// threshold, scan interval.
 void BM_LinesEdgeDrawingRaw(benchmark::State& state) {
   const LinesMicro& m = linesMicro();
   if (!m.ok) {
     state.SkipWithError("EuRoC micro set not found (set LINNET_SHARED_DATA)");
     return;
   }
-  linnet::EdgeDrawing ed{linnet::EdgeDrawingOptions{}};
+  linnet::EdgeDrawingOptions opt;
+  opt.anchor_threshold = static_cast<int>(state.range(0));
+  opt.scan_interval = static_cast<int>(state.range(1));
+  linnet::EdgeDrawing ed(opt);
   std::vector<cv::Vec4f> lines;
   std::size_t k = 0;
   double n = 0.0, frames = 0.0;
@@ -186,6 +191,7 @@ void BM_LinesLbd100(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_LinesTrackStereo)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
+BENCHMARK(BM_LinesTrackStereoEdlines)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesTrackMono)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesTrackStereoFld)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesTrackStereoLsd)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
@@ -193,6 +199,6 @@ BENCHMARK(BM_LinesDetectEdlinesHalf)->Unit(benchmark::kMillisecond)->MeasureProc
 BENCHMARK(BM_LinesDetectEdlinesFull)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesDetectFldHalf)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesDetectEdFull)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
-BENCHMARK(BM_LinesEdgeDrawingRaw)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
+BENCHMARK(BM_LinesEdgeDrawingRaw)->Args({0, 1})->Args({8, 1})->Args({0, 2})->Args({8, 2})->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesDetectLsd)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 BENCHMARK(BM_LinesLbd100)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();

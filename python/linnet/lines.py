@@ -144,6 +144,33 @@ def camera_dict(cam: dict) -> dict:
     return {k: cam[k] for k in ("width", "height", "intrinsics", "distortion", "distortion_coeffs")}
 
 
+DETECTORS = ("ed", "edlines", "fld", "lsd")
+# Detection resolution that suits each detector (lines.detection.downsample): "ed" is fast enough at full resolution,
+# OpenCV's EdgeDrawing and FastLineDetector are run on the half-size image, LSD does its own 0.8 gaussian downsampling
+# (thesis).
+DETECTOR_DOWNSAMPLE = {"ed": 1.0, "edlines": 2.0, "fld": 2.0, "lsd": 1.0}
+
+
+def tracker_options(detector: Optional[str] = None, settings: Sequence[str] = ()) -> dict:
+    """LineTracker option overrides from a detector name (with its resolution, DETECTOR_DOWNSAMPLE) and KEY=VALUE
+    strings (keys as in the config's `lines` section, e.g. detection.min_length_px=30; values parsed as YAML).
+    ValueError names a malformed setting; unknown keys are reported by the tracker (ConfigError naming the key)."""
+    import yaml
+
+    opts: dict = {}
+    if detector:
+        if detector not in DETECTORS:
+            raise ValueError(f"unknown line detector '{detector}' (one of {', '.join(DETECTORS)})")
+        opts["detection.detector"] = detector
+        opts["detection.downsample"] = DETECTOR_DOWNSAMPLE[detector]
+    for item in settings:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"setting '{item}' is not KEY=VALUE")
+        opts[key.strip()] = yaml.safe_load(value)
+    return opts
+
+
 def make_tracker(data: EurocStereo, options: Optional[dict] = None, mono: bool = False):
     """A compiled LineTracker for the dataset's rig (options: {"key.path": value} overrides)."""
     from linnet import _linnet

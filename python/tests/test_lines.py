@@ -138,7 +138,7 @@ def test_tracker_binding_tracks_a_shifting_scene():
         assert np.median(np.abs(off - expect)) < 1.0
     tm = tr.last_timings()
     assert tm["total_ms"] > 0 and tm["tracked"] > 0
-    assert tr.options()["detection.detector"] == "edlines"
+    assert tr.options()["detection.detector"] == "ed"
 
 
 def test_tracker_binding_errors_and_degenerate_images():
@@ -223,6 +223,29 @@ def test_lines_and_bench_commands(tmp_path):
     assert out["stages_ms"]["total_ms"]["median"] > 0
     res = runner.invoke(cli, ["lines", str(micro), "--out", str(tmp_path / "x"), "--frames", "9:2"])
     assert res.exit_code != 0
+    # Option overrides: a detector with its resolution, KEY=VALUE settings; errors name the setting or the key.
+    res = runner.invoke(cli, ["bench", "lines", str(micro), "--frames", "0:3", "--detector", "edlines",
+                              "--set", "detection.min_length_px=30", "--json", str(tmp_path / "c.json")])
+    assert res.exit_code == 0, res.output
+    opts = json.loads((tmp_path / "c.json").read_text())["options"]
+    assert opts["detection.detector"] == "edlines" and opts["detection.downsample"] == 2.0
+    assert opts["detection.min_length_px"] == 30
+    res = runner.invoke(cli, ["bench", "lines", str(micro), "--frames", "0:3", "--set", "detection.min_length_px"])
+    assert res.exit_code != 0 and "KEY=VALUE" in res.output
+    res = runner.invoke(cli, ["lines", str(micro), "--out", str(tmp_path / "y"), "--frames", "0:2", "--no-png",
+                              "--set", "detection.bogus=1"])
+    assert res.exit_code != 0 and "lines.detection.bogus" in res.output
+
+
+def test_tracker_options():
+    assert lines.tracker_options() == {}
+    assert lines.tracker_options("lsd") == {"detection.detector": "lsd", "detection.downsample": 1.0}
+    opts = lines.tracker_options("ed", ["detection.parallel_edges=false", "temporal.guided_px = 2.5"])
+    assert opts["detection.parallel_edges"] is False and opts["temporal.guided_px"] == 2.5
+    with pytest.raises(ValueError, match="hough"):
+        lines.tracker_options("hough")
+    with pytest.raises(ValueError, match="KEY=VALUE"):
+        lines.tracker_options(None, ["=3"])
 
 
 def test_segment_labels_accept_parallel_true_edges_closer_than_the_tolerance():

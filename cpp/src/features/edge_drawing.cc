@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 
 #include <opencv2/imgproc.hpp>
 
@@ -89,18 +90,30 @@ void EdgeDrawing::link() {
   const int step = std::max(1, options_.scan_interval), A = options_.anchor_threshold;
   anchors_.clear();
   int max_mag = 0;
+  ridge_.resize(static_cast<std::size_t>(cols) + 8);
+  std::uint8_t* ridge = ridge_.data();
   for (int y = 1; y < rows - 1; y += step) {
     const std::uint16_t* m = mag_.ptr<std::uint16_t>(y);
     const std::uint16_t* up = mag_.ptr<std::uint16_t>(y - 1);
     const std::uint16_t* dn = mag_.ptr<std::uint16_t>(y + 1);
     const std::uint8_t* d = dir_.ptr<std::uint8_t>(y);
-    for (int x = 1; x < cols - 1; x += step) {
+    // Branch-free ridge test over the row (vectorised by the compiler), then a sparse pass over the hits.
+    for (int x = 1; x < cols - 1; ++x) {
       const int g = m[x];
-      if (g == 0) continue;
-      const bool ridge = d[x] ? (g - m[x - 1] >= A && g - m[x + 1] >= A) : (g - up[x] >= A && g - dn[x] >= A);
-      if (!ridge) continue;
-      anchors_.push_back(y * cols + x);
-      max_mag = std::max(max_mag, g);
+      const bool across_x = (g - m[x - 1] >= A) & (g - m[x + 1] >= A);
+      const bool across_y = (g - up[x] >= A) & (g - dn[x] >= A);
+      ridge[x] = static_cast<std::uint8_t>((g != 0) & (d[x] ? across_x : across_y));
+    }
+    ridge[0] = ridge[cols - 1] = 0;
+    for (int x = 0; x < cols; x += 8) {
+      std::uint64_t word;
+      std::memcpy(&word, ridge + x, 8);
+      if (word == 0) continue;
+      for (int k = x; k < std::min(x + 8, cols); ++k) {
+        if (!ridge[k] || (step > 1 && k % step != 0)) continue;
+        anchors_.push_back(y * cols + k);
+        max_mag = std::max(max_mag, static_cast<int>(m[k]));
+      }
     }
   }
   // Strongest anchors first (counting sort on the magnitude): chains grow from the clearest edges.
@@ -146,7 +159,7 @@ void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out
   std::uint8_t* edge = edge_.ptr<std::uint8_t>(0);
   for (;;) {
     // The three pixels ahead: straight on first, so that it wins ties.
-    int best = -1, best_g = 0, best_side = 0;
+    int best = -1, best_g = 0, best_side = 0, bx = 0, by = 0;
     for (int side : {0, -1, 1}) {
       const int nx = x + dx + (dx == 0 ? side : 0), ny = y + dy + (dy == 0 ? side : 0);
       const int i = ny * cols + nx;
@@ -154,11 +167,13 @@ void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out
         best_g = mag[i];
         best = i;
         best_side = side;
+        bx = nx;
+        by = ny;
       }
     }
     if (best < 0 || edge[best]) return;  // below threshold, or ran into a chain already drawn
-    x = best % cols;
-    y = best / cols;
+    x = bx;
+    y = by;
     edge[best] = 1;
     out->emplace_back(x, y);
     // The edge turned: continue along its new orientation, away from where the step came from.
@@ -187,7 +202,9 @@ void EdgeDrawing::fitLines(const std::vector<cv::Point>& chain, std::vector<cv::
       sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
     }
     LineFit f = fitFromSums(L, sx, sy, sxx, syy, sxy);
-    if (f.mse > tol2) {
+    bool straight = f.mse <= tol2;  // cheap test first, then every pixel of the window within tol
+    for (int k = i; straight && k < i + L; ++k) straight = distance(f, chain[k].x - ox, chain[k].y - oy) <= tol;
+    if (!straight) {
       ++i;
       continue;
     }

@@ -22,7 +22,7 @@ TEST_P(DetectorTest, FindsSceneEdgesWithinTwoPixels) {
   const cv::Mat img = testing::renderScene(scene, cam, Pose(), 2.0, 1);
   LineDetectorOptions opt;
   opt.detector = GetParam();
-  if (opt.detector == "lsd" || opt.detector == "ed") opt.downsample = 1;
+  opt.downsample = (opt.detector == "edlines" || opt.detector == "fld") ? 2.0 : 1.0;
   LineDetector det(opt);
   std::vector<LineSegment> segs;
   det.detect(img, &segs);
@@ -111,7 +111,11 @@ std::array<int, 2> detectBarEdges(const LineDetectorOptions& opt, double width, 
 // Dark bar between a bright wall (170) and a mid-grey face (110): the half-size detection finds only the strong edge;
 // the parallel-edge search finds the weaker one too, within 0.5 px.
 TEST(LineDetector, ParallelEdgesOfThinBarsAreBothFound) {
+  // OpenCV's EdgeDrawing on the half-size image fuses the bar's two edges; the parallel-edge search recovers the
+  // second one.
   LineDetectorOptions opt;
+  opt.detector = "edlines";
+  opt.downsample = 2.0;
   for (double width : {2.5, 3.5}) {
     opt.parallel_edges = true;
     const std::array<int, 2> with = detectBarEdges(opt, width, 110.0);
@@ -121,6 +125,18 @@ TEST(LineDetector, ParallelEdgesOfThinBarsAreBothFound) {
     const std::array<int, 2> without = detectBarEdges(opt, width, 110.0);
     EXPECT_EQ(without[0], 1) << "width " << width;
     EXPECT_EQ(without[1], 0) << "width " << width;
+  }
+}
+
+TEST(LineDetector, FullResolutionEdgeDrawingSeparatesThinBarEdges) {
+  LineDetectorOptions opt;  // the default: "ed" at full resolution
+  for (double width : {2.5, 3.5}) {
+    for (bool parallel : {true, false}) {
+      opt.parallel_edges = parallel;
+      const std::array<int, 2> found = detectBarEdges(opt, width, 110.0);
+      EXPECT_EQ(found[0], 1) << "width " << width << " parallel " << parallel;
+      EXPECT_EQ(found[1], 1) << "width " << width << " parallel " << parallel;
+    }
   }
 }
 

@@ -75,7 +75,9 @@ def _default_trajectory() -> Path:
 @click.argument("dataset", required=False, type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the results as JSON.")
 @click.option("--frames", default=None, help="Frame range A:B (Python slice).")
-@click.option("--detector", type=click.Choice(["edlines", "fld", "lsd"]), default=None, help="Line detector.")
+@click.option("--detector", type=click.Choice(["ed", "edlines", "fld", "lsd"]), default=None, help="Line detector.")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Override a line front-end option (config section 'lines'), e.g. detection.min_length_px=30.")
 @click.option("--repeat", type=int, default=1, show_default=True, help="Passes over the frames (timings pooled).")
 @click.option("--mono", is_flag=True, help="Ignore cam1.")
 @click.option("--sim", "sim_scene", default=None,
@@ -83,18 +85,19 @@ def _default_trajectory() -> Path:
 @click.option("--trajectory", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="With --sim: the replayed trajectory (default: shared data's V1_02_medium ground truth).")
 @click.option("--duration", type=float, default=30.0, show_default=True, help="With --sim: seconds replayed.")
-def COMMAND(dataset, json_out, frames, detector, repeat, mono, sim_scene, trajectory, duration):
+def COMMAND(dataset, json_out, frames, detector, settings, repeat, mono, sim_scene, trajectory, duration):
     """Benchmark the line front-end on DATASET: per-stage median / p95 ms, counts and track lengths.
     With --sim SCENE: detection recall, temporal / stereo precision and track length against ground truth."""
-    from linnet import lines
+    from linnet import _linnet, lines
 
+    try:
+        opts = lines.tracker_options(detector, settings)
+    except ValueError as e:
+        raise click.BadParameter(str(e), param_hint="--set") from e
     if sim_scene is not None:
         traj = trajectory or _default_trajectory()
         if not Path(traj).is_file():
             raise click.BadParameter(f"{traj}: not found", param_hint="--trajectory")
-        opts = {"detection.detector": detector} if detector else {}
-        if detector == "lsd":
-            opts["detection.downsample"] = 1
         res = lines.score_sim(str(traj), sim_scene, duration=duration, options=opts)
         click.echo(f"simulated {sim_scene} on {Path(traj).name}, {res['frames']} frames ({duration:g} s)")
         click.echo(f"detection recall {res['detection_recall']:.3f} of {res['gt_segments_considered']} visible "
@@ -112,16 +115,11 @@ def COMMAND(dataset, json_out, frames, detector, repeat, mono, sim_scene, trajec
     if dataset is None:
         raise click.UsageError("give DATASET or --sim SCENE")
 
-    opts = {}
-    if detector:
-        opts["detection.detector"] = detector
-        if detector == "lsd":
-            opts["detection.downsample"] = 1
     if repeat < 1:
         raise click.BadParameter("must be >= 1", param_hint="--repeat")
     try:
         res = bench(dataset, frames, opts, mono, repeat)
-    except lines.DatasetError as e:
+    except (lines.DatasetError, _linnet.ConfigError) as e:
         raise click.ClickException(str(e)) from e
     except ValueError as e:
         raise click.BadParameter(str(e), param_hint="--frames") from e

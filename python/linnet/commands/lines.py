@@ -10,12 +10,13 @@ CSV_COLUMNS = ("frame", "t_ns", "lines", "stereo_matched", "tracked", "new_lines
                "cpu_total_ms")
 
 
-def _options(detector, max_lines):
-    opts = {}
-    if detector:
-        opts["detection.detector"] = detector
-        if detector == "lsd":
-            opts["detection.downsample"] = 1  # LSD does its own 0.8 gaussian downsampling (thesis)
+def _options(detector, max_lines, settings=()):
+    from linnet.lines import tracker_options
+
+    try:
+        opts = tracker_options(detector, settings)
+    except ValueError as e:
+        raise click.BadParameter(str(e), param_hint="--set") from e
     if max_lines:
         opts["max_lines"] = max_lines
     return opts
@@ -26,12 +27,14 @@ def _options(detector, max_lines):
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Output folder for frame_NNNNNN.png and lines.csv.")
 @click.option("--frames", default=None, help="Frame range A:B (Python slice, e.g. 0:50 or -20:).")
-@click.option("--detector", type=click.Choice(["edlines", "fld", "lsd"]), default=None,
-              help="Line detector (default: the configured one, edlines).")
+@click.option("--detector", type=click.Choice(["ed", "edlines", "fld", "lsd"]), default=None,
+              help="Line detector (default: the configured one, ed).")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Override a line front-end option (config section 'lines'), e.g. detection.min_length_px=30.")
 @click.option("--max-lines", type=int, default=None, help="Lines delivered per frame.")
 @click.option("--mono", is_flag=True, help="Ignore cam1.")
 @click.option("--no-png", is_flag=True, help="Only write lines.csv.")
-def COMMAND(dataset, out_dir, frames, detector, max_lines, mono, no_png):
+def COMMAND(dataset, out_dir, frames, detector, settings, max_lines, mono, no_png):
     """Track lines through DATASET (a EuRoC folder); write PNGs coloured by id (left | right) and lines.csv."""
     import cv2
 
@@ -45,7 +48,12 @@ def COMMAND(dataset, out_dir, frames, detector, max_lines, mono, no_png):
         raise click.ClickException(str(e)) from e
     except ValueError as e:
         raise click.BadParameter(str(e), param_hint="--frames") from e
-    tracker = lines.make_tracker(data, _options(detector, max_lines), mono=mono)
+    from linnet import _linnet
+
+    try:
+        tracker = lines.make_tracker(data, _options(detector, max_lines, settings), mono=mono)
+    except _linnet.ConfigError as e:
+        raise click.ClickException(str(e)) from e
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
     prev_t = None

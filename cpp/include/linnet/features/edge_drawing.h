@@ -18,11 +18,11 @@ namespace linnet {
 
 struct EdgeDrawingOptions {
   double sigma = 1.0;             // gaussian smoothing before the gradient, pixels (0: none)
-  int gradient_threshold = 36;    // weakest |gx| + |gy| (3x3 Sobel, so 4x a one-pixel difference) on an edge
+  int gradient_threshold = 27;    // weakest |gx| + |gy| (3x3 Sobel, so 4x a one-pixel difference) on an edge
   int anchor_threshold = 0;       // how much an anchor's magnitude exceeds both neighbours across the edge
   int scan_interval = 1;          // anchors are looked for on every scan_interval-th row and column
   int min_line_px = 12;           // fewest chain pixels in a line piece
-  double fit_error_px = 1.0;      // largest distance of a chain pixel from its piece's fitted line, pixels
+  double fit_error_px = 1.5;      // largest distance of a chain pixel from its piece's fitted line, pixels
   int max_outliers = 1;           // pixels beyond fit_error_px skipped inside a piece before it ends
 };
 
@@ -48,6 +48,7 @@ class EdgeDrawing {
   cv::Mat mag_;    // CV_16U, |gx| + |gy|, 0 below gradient_threshold and on the 1-pixel border
   cv::Mat dir_;    // CV_8U, 1 where the edge runs vertically (|gx| >= |gy|), 0 where it runs horizontally
   cv::Mat edge_;   // CV_8U, 1 on pixels already linked into a chain
+  std::vector<std::uint8_t> ridge_;  // one row of the ridge test
   std::vector<int> anchors_;      // y * cols + x
   std::vector<int> bucket_start_;
   std::vector<int> sorted_;

@@ -18,18 +18,18 @@ namespace linnet {
 struct LineDetectorOptions {
   // "ed" (Edge Drawing + EDLines' fit written here, see edge_drawing.h) | "edlines" (OpenCV ximgproc EdgeDrawing) |
   // "fld" (OpenCV FastLineDetector) | "lsd" (von Gioi et al. 2012, the thesis' detector)
-  std::string detector = "edlines";
-  double downsample = 2.0;           // detect on the image shrunk by this factor (1 = full resolution; integers: pixel
-                                     // averaging, otherwise bilinear)
+  std::string detector = "ed";
+  double downsample = 1.0;           // detect on the image shrunk by this factor (1 = full resolution; integers: pixel
+                                     // averaging, otherwise bilinear); 2 suits "edlines" and "fld"
   double lsd_scale = 0.8;            // LSD's own gaussian downsampling (thesis 3.1.1), used by "lsd" only
   int edlines_gradient_threshold = 20;  // EDLines gradient threshold, grey levels
   int edlines_anchor_threshold = 0;     // EDLines anchor threshold, grey levels
   double edlines_sigma = 1.0;           // EDLines gaussian smoothing, pixels of the detection image
   double ed_sigma = 1.0;                // "ed": gaussian smoothing, pixels of the detection image
-  int ed_gradient_threshold = 36;       // "ed": weakest 3x3 Sobel |gx| + |gy| on an edge (4x grey-level steps)
-  int ed_anchor_threshold = 0;          // "ed": anchor's excess over its neighbours across the edge
-  int ed_scan_interval = 1;             // "ed": anchors looked for on every n-th row and column
-  double ed_fit_error_px = 1.0;         // "ed": largest distance of an edge pixel from its line, detection pixels
+  int ed_gradient_threshold = 27;       // "ed": weakest 3x3 Sobel |gx| + |gy| on an edge (4x grey-level steps)
+  int ed_anchor_threshold = 8;          // "ed": anchor's excess over its neighbours across the edge
+  int ed_scan_interval = 2;             // "ed": anchors looked for on every n-th row and column
+  double ed_fit_error_px = 1.5;         // "ed": largest distance of an edge pixel from its line, detection pixels
   int fld_canny_low = 50;               // FastLineDetector Canny thresholds, grey levels
   int fld_canny_high = 100;
   double min_length_px = 25.0;       // shortest segment kept, full-resolution pixels

@@ -12,7 +12,7 @@ struct LineMergeOptions {
   bool enabled = true;
   double max_angle_deg = 3.0;         // direction difference (same gradient polarity required), degrees
   double max_perpendicular_px = 2.0;  // distance of the shorter segment's endpoints to the longer one's line, pixels
-  double max_gap_px = 20.0;           // gap between the nearest endpoints along the line, pixels
+  double max_gap_px = 25.0;           // gap between the nearest endpoints along the line, pixels
   int max_hamming = 100;              // LBD agreement: Hamming distance, bits of 256
 
   template <class V>
