@@ -31,7 +31,7 @@ LineFit fitFromSums(double n, double sx, double sy, double sxx, double syy, doub
     vx = lambda - c;
     vy = b;
   }
-  const double norm = std::hypot(vx, vy);
+  const double norm = std::sqrt(vx * vx + vy * vy);  // no over/underflow here: std::hypot's care is slow
   if (norm > 1e-12) {
     f.dx = vx / norm;
     f.dy = vy / norm;

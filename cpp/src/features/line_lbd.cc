@@ -84,8 +84,8 @@ std::array<float, kLbdFloats> computeLbdFloat(const cv::Mat& gray, const LbdOpti
         row[c] = gray.data[static_cast<std::ptrdiff_t>(fy >> 16) * sstride + (fx >> 16)];
     } else {
       for (int c = 0; c < cols; ++c) {
-        const int xi = std::clamp(static_cast<int>(std::lround(bx + static_cast<float>(c) * sx)), 0, max_xi);
-        const int yi = std::clamp(static_cast<int>(std::lround(by + static_cast<float>(c) * sy)), 0, max_yi);
+        const int xi = std::clamp(static_cast<int>(std::floor(bx + static_cast<float>(c) * sx + 0.5f)), 0, max_xi);
+        const int yi = std::clamp(static_cast<int>(std::floor(by + static_cast<float>(c) * sy + 0.5f)), 0, max_yi);
         row[c] = gray.data[static_cast<std::ptrdiff_t>(yi) * sstride + xi];
       }
     }
