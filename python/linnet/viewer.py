@@ -5,7 +5,8 @@ where it was built), the point-and-line map (``map.ply``) and the body pose over
 (headless); otherwise a rerun viewer is spawned.
 
 Run folder (written by ``linnet run``): ``trajectory.tum`` (or ``trajectory.csv``), optional ``map.ply`` (ASCII PLY:
-vertices x y z [red green blue], optional edges vertex1 vertex2 = line segments), optional ``summary.json`` whose
+vertices x y z [red green blue], optional edges vertex1 vertex2 = line segments), optional ``map_lines.csv`` (the line
+map, see ``linnet.map_eval``; its segments are shown when map.ply has no edges), optional ``summary.json`` whose
 ``dataset`` names a EuRoC folder with ground truth.
 """
 from __future__ import annotations
@@ -167,6 +168,21 @@ def _find_ground_truth(run_dir: Path) -> Optional[Path]:
     return None
 
 
+def _add_map_lines_csv(run_dir: Path, view: RunView) -> None:
+    """Take the map segments from map_lines.csv when map.ply is missing or has no edges."""
+    csv = run_dir / "map_lines.csv"
+    if not csv.is_file() or (view.map is not None and len(view.map.segments)):
+        return
+    from linnet.map_eval import read_map_lines
+
+    _ids, segments, _observations = read_map_lines(csv)
+    if view.map is None:
+        view.map = MapGeometry()
+    view.map.segments = segments
+    view.map.segment_colors = None
+    view.notes.append("map lines read from map_lines.csv (map.ply has none)")
+
+
 def load_run(run_dir, gt=None, options: Optional[ViewerOptions] = None) -> RunView:
     """Load a run folder; ``gt`` overrides the ground truth found through summary.json."""
     options = options or ViewerOptions()
@@ -179,6 +195,7 @@ def load_run(run_dir, gt=None, options: Optional[ViewerOptions] = None) -> RunVi
         view.map = read_ply(ply)
     else:
         view.notes.append("no map.ply")
+    _add_map_lines_csv(run_dir, view)
     gt_path = Path(gt) if gt is not None else _find_ground_truth(run_dir)
     if gt_path is None:
         view.notes.append("no ground truth (none given, none found through summary.json)")

@@ -109,6 +109,28 @@ def test_load_run_without_ground_truth_or_map(run_dir):
         viewer.load_run(run / "..")
 
 
+MAP_LINES = "#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations\n7,0,0,0,1,0,0,12\n9,0,1,0,0,1,2,3\n"
+
+
+def test_load_run_takes_segments_from_map_lines_csv_when_map_ply_has_no_edges(run_dir):
+    run, _ = run_dir
+    (run / "map_lines.csv").write_text(MAP_LINES)
+    assert len(viewer.load_run(run).map.segments) == 1  # map.ply's edge wins
+    (run / "map.ply").write_text(PLY.replace("element edge 1\n", "element edge 0\n").replace("3 4\n", ""))
+    view = viewer.load_run(run)
+    assert len(view.map.points) == 5
+    assert view.map.segments.tolist() == [[[0, 0, 0], [1, 0, 0]], [[0, 1, 0], [0, 1, 2]]]
+    assert view.map.segment_colors is None
+    assert view.notes == ["map lines read from map_lines.csv (map.ply has none)"]
+    (run / "map.ply").unlink()
+    view = viewer.load_run(run)
+    assert len(view.map.points) == 0 and len(view.map.segments) == 2
+    assert view.notes == ["no map.ply", "map lines read from map_lines.csv (map.ply has none)"]
+    (run / "map_lines.csv").write_text(MAP_LINES + "10,1,2\n")
+    with pytest.raises(ev.InputError, match=r"map_lines.csv:4: 3 columns, expected 8"):
+        viewer.load_run(run)
+
+
 def test_view_saves_a_recording(run_dir, tmp_path):
     pytest.importorskip("rerun")
     run, _ = run_dir

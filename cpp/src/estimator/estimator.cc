@@ -39,6 +39,7 @@ Estimator::~Estimator() = default;
 void Estimator::addImu(const ImuSample& s) { core_->addImu(s); }
 EstimatorOutput Estimator::addFrame(const FrameObservations& obs) { return core_->addFrame(obs); }
 std::vector<Vec3> Estimator::landmarkPositions() const { return core_->landmarkPositions(); }
+std::vector<MapLine> Estimator::mapLines() const { return core_->mapLines(); }
 
 // ---------------------------------------------------------------------------------------------------------------
 EstimatorCore::EstimatorCore(const EstimatorOptions& options, const ImuNoise& noise, const Pose& T_B_C0,
@@ -49,7 +50,21 @@ EstimatorCore::EstimatorCore(const EstimatorOptions& options, const ImuNoise& no
       T_B_C1_(T_B_C1),
       g_W_(0.0, 0.0, -noise.gravity),
       points_(options.solver, T_B_C0, T_B_C1),
-      huber_(options.solver.huber_px) {}
+      lines_(options.lines, options.solver.focal_length, T_B_C0, T_B_C1),
+      huber_(options.solver.huber_px),
+      line_huber_(options.lines.huber_px) {}
+
+void EstimatorCore::observeLines(FrameId frame, const FrameObservations& obs) {
+  if (!options_.lines.enabled || obs.lines.empty()) return;
+  ScopedMs timer(&line_ms_);
+  lines_.observe(frame, obs.lines);
+}
+
+void EstimatorCore::clearLandmarks() {
+  points_.clear();
+  ScopedMs timer(&line_ms_);
+  lines_.clear();
+}
 
 void EstimatorCore::addImu(const ImuSample& s) { imu_.append(s); }
 
@@ -64,6 +79,7 @@ EstimatorOutput EstimatorCore::output(const WindowFrame& f) const {
   out.b_g = f.bg();
   out.keyframe = f.keyframe;
   out.num_points = points_.countUsed();
+  out.num_lines = lines_.countUsed();
   out.reinitialisations = reinitialisations_;
   return out;
 }
@@ -119,7 +135,7 @@ void EstimatorCore::addInitialPrior(double velocity_sigma) {
 
 bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& start, double velocity_sigma) {
   window_.clear();
-  points_.clear();
+  clearLandmarks();
   priors_.clear();
   WindowFrame& f = window_.push(obs.t);
   f.setPose(start.T_W_B);
@@ -128,10 +144,16 @@ bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& st
   f.keyframe = true;
   points_.observe(f.id, obs.points);
   points_.triangulate(window_);
-  const int n = points_.countTriangulatedIn(f.id);
+  observeLines(f.id, obs);
+  {
+    ScopedMs timer(&line_ms_);
+    lines_.triangulate(window_);
+  }
+  // Stereo lines count as landmarks too: a low-texture frame may start a window with few points.
+  const int n = points_.countTriangulatedIn(f.id) + lines_.countTriangulatedIn(f.id);
   if (n < options_.init.min_points) {
     window_.clear();
-    points_.clear();
+    clearLandmarks();
     return false;
   }
   const bool velocity_known = velocity_sigma > 0.0;
@@ -148,6 +170,7 @@ bool EstimatorCore::collectStep(const FrameObservations& obs) {
   f.setV(Vec3::Zero());
   f.keyframe = true;
   points_.observe(f.id, obs.points);
+  observeLines(f.id, obs);
   std::vector<Vec3> p_W;
   std::vector<Vec2> uv;
   points_.triangulatedIn(window_, f.id, &p_W, &uv);
@@ -158,6 +181,10 @@ bool EstimatorCore::collectStep(const FrameObservations& obs) {
   if (!r.ok || r.rms_px > options_.init.max_pnp_error_px || r.inliers < options_.init.min_points) return false;
   f.setPose(T);
   points_.triangulate(window_);
+  {
+    ScopedMs timer(&line_ms_);
+    lines_.triangulate(window_);
+  }
   return true;
 }
 
@@ -243,6 +270,8 @@ void EstimatorCore::resetAfterFailure(const FrameObservations& obs, const NavSta
 
 EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   const auto t0 = std::chrono::steady_clock::now();
+  line_ms_ = 0.0;
+  solver_ms_ = 0.0;
   if (have_frame_ && obs.t <= last_frame_t_)
     throw UsageError("Estimator::addFrame: frame time " + std::to_string(obs.t) + " ns is not after the previous " +
                      std::to_string(last_frame_t_) + " ns");
@@ -258,6 +287,8 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
     if (last_good_) keep = std::min(keep, last_good_->t);
     imu_.dropBefore(keep);
     o.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    o.line_ms = line_ms_;
+    o.solver_ms = solver_ms_;
     return o;
   };
   if (!T_B_C1_.has_value() || !obs.stereo) return finish(out);  // monocular: no initialiser yet
@@ -308,20 +339,24 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
     if (!collectStep(obs)) {
       mode_ = Mode::kWaitingForFirstFrame;
       window_.clear();
-      points_.clear();
+      clearLandmarks();
       return finish(out);
     }
     if (window_.size() < options_.init.moving_frames) return finish(out);
     if (!finishMovingInit()) {
       mode_ = Mode::kWaitingForFirstFrame;
       window_.clear();
-      points_.clear();
+      clearLandmarks();
       return finish(out);
     }
     // The first solve starts from the initialiser's rough state (velocities from differences, biases from a
     // linear fit): it gets more iterations and every cam1 residual, unlike a per-frame solve from an IMU prediction.
     solveWindow(std::max(options_.solver.max_num_iterations, options_.init.solver_iterations), true);
     points_.rejectOutliers(window_);
+    {
+      ScopedMs timer(&line_ms_);
+      lines_.rejectOutliers(window_);
+    }
     slideWindow();
     const WindowFrame& f = window_.newest();
     last_good_ = NavState{f.t, f.T_W_B(), f.v(), f.ba(), f.bg()};
@@ -332,30 +367,43 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   WindowFrame& f = pushPredicted(obs.t);
   const NavState predicted{f.t, f.T_W_B(), f.v(), f.ba(), f.bg()};
   points_.observe(f.id, obs.points);
+  observeLines(f.id, obs);
   std::vector<Vec3> p_W;
   std::vector<Vec2> uv;
   points_.triangulatedIn(window_, f.id, &p_W, &uv);
-  const int tracked = static_cast<int>(p_W.size());
+  const int tracked_points = static_cast<int>(p_W.size());
+  // Lines already in the map count as tracked landmarks: in low texture they carry the frame.
+  const int tracked = tracked_points + lines_.countTriangulatedIn(f.id);
   if (tracked < options_.failure.min_tracked) {
     resetAfterFailure(obs, predicted, &out);
     return finish(out);
   }
-  decideKeyframe(f, tracked);
+  decideKeyframe(f, tracked_points);
   points_.triangulate(window_);
+  {
+    ScopedMs timer(&line_ms_);
+    lines_.triangulate(window_);
+  }
   solveWindow(options_.solver.max_num_iterations);
   if (failureAfterSolve(predicted)) {
     resetAfterFailure(obs, predicted, &out);
     return finish(out);
   }
   points_.rejectOutliers(window_);
+  {
+    ScopedMs timer(&line_ms_);
+    lines_.rejectOutliers(window_);
+  }
   const bool keyframe = window_.newest().keyframe;
   const int used = points_.countUsed();
+  const int used_lines = lines_.countUsed();
   slideWindow();
   const WindowFrame& n = window_.newest();
   last_good_ = NavState{n.t, n.T_W_B(), n.v(), n.ba(), n.bg()};
   EstimatorOutput o = output(n);
   o.keyframe = keyframe;
   o.num_points = used;
+  o.num_lines = used_lines;
   return finish(o);
 }
 

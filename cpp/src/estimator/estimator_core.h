@@ -3,6 +3,8 @@
 // marginalisation / window sliding.
 #pragma once
 
+#include <chrono>
+#include <map>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -11,6 +13,7 @@
 
 #include "linnet/estimator/estimator.h"
 #include "linnet/estimator/factors/prior_factor.h"
+#include "linnet/estimator/line_landmarks.h"
 #include "linnet/estimator/manifolds.h"
 #include "linnet/estimator/point_landmarks.h"
 #include "linnet/estimator/residual_spec.h"
@@ -18,6 +21,19 @@
 #include "linnet/imu/imu_buffer.h"
 
 namespace linnet {
+
+/// Adds the wall time of its scope to a counter, ms.
+class ScopedMs {
+ public:
+  explicit ScopedMs(double* acc) : acc_(acc), t0_(std::chrono::steady_clock::now()) {}
+  ~ScopedMs() { *acc_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0_).count(); }
+  ScopedMs(const ScopedMs&) = delete;
+  ScopedMs& operator=(const ScopedMs&) = delete;
+
+ private:
+  double* acc_;
+  std::chrono::steady_clock::time_point t0_;
+};
 
 /// A full navigation state at one time.
 using NavState = ImuState;
@@ -30,6 +46,7 @@ class EstimatorCore {
   void addImu(const ImuSample& s);
   EstimatorOutput addFrame(const FrameObservations& obs);
   std::vector<Vec3> landmarkPositions() const { return points_.positions(window_); }
+  std::vector<MapLine> mapLines() const { return lines_.mapLines(); }
 
  private:
   enum class Mode { kWaitingForFirstFrame, kCollecting, kTracking };
@@ -59,6 +76,14 @@ class EstimatorCore {
   /// all_right: every cam1 residual (the initialisation's solve), else as solver.right_residuals_all_frames says.
   void solveWindow(int max_iterations, bool all_right = false);
   void solveWindowSchurLm(int max_iterations, bool all_right);
+  /// Per-frame cost weights of the patent's point / line weighting (empty when lines.weighting is off).
+  std::map<FrameId, double> frameWeights(bool for_lines) const;
+  /// The robust loss of a residual spec (point or line Huber), nullptr if not robust.
+  ceres::LossFunction* lossOf(const ResidualSpec& r);
+  /// Observes the frame's lines (when lines are enabled).
+  void observeLines(FrameId frame, const FrameObservations& obs);
+  /// Removes the window's landmarks (points dropped, good lines kept in the map).
+  void clearLandmarks();
   void slideWindow();
   void marginaliseOldest();
   void dropFrame(int index);
@@ -72,9 +97,16 @@ class EstimatorCore {
   ImuBuffer imu_;
   Window window_;
   PointLandmarks points_;
+  LineLandmarks lines_;
   std::vector<std::shared_ptr<const MarginalizationPrior>> priors_;
   PoseManifold pose_manifold_;
+  LineManifold line_manifold_;
   ceres::HuberLoss huber_;
+  ceres::HuberLoss line_huber_;
+
+  // Per-frame timing of the line-only steps and of the solve, ms (reset by addFrame).
+  double line_ms_ = 0.0;
+  double solver_ms_ = 0.0;
 
   Mode mode_ = Mode::kWaitingForFirstFrame;
   std::optional<NavState> last_good_;   // newest state of the last good solve (for re-initialisation)

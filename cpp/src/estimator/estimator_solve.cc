@@ -71,10 +71,18 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
     keep.push_back(f);
   }
   std::vector<ResidualSpec> residuals = imuResiduals(1, window_.size() - 1);
-  std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right);
+  std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right, frameWeights(false));
   for (ResidualSpec& r : visual) residuals.push_back(std::move(r));
+  {
+    ScopedMs timer(&line_ms_);
+    std::vector<ResidualSpec> lines = lines_.residuals(window_, -1, frameWeights(true));
+    for (ResidualSpec& r : lines) {
+      problem.AddParameterBlock(r.blocks[1], kLineAmbientSize, &line_manifold_);
+      residuals.push_back(std::move(r));
+    }
+  }
   for (const ResidualSpec& r : residuals) {
-    problem.AddResidualBlock(r.cost.get(), r.robust ? &huber_ : nullptr, r.blocks);
+    problem.AddResidualBlock(r.cost.get(), lossOf(r), r.blocks);
     keep.push_back(r.cost);
   }
   // The gauge (position and yaw) is held by the window's initial prior, carried on by marginalisation; no block is
@@ -90,6 +98,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   opts.linear_solver_type =
       so.linear_solver == "dense_schur" ? ceres::DENSE_SCHUR : ceres::SPARSE_NORMAL_CHOLESKY;
   ceres::Solver::Summary summary;
+  ScopedMs timer(&solver_ms_);
   ceres::Solve(opts, &problem, &summary);
 }
 
@@ -109,17 +118,56 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
   }
   const std::vector<ResidualSpec> imu = imuResiduals(1, window_.size() - 1);
   for (const ResidualSpec& r : imu) solver.addResidual(r.cost.get(), nullptr, r.blocks);
-  const std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right);
+  std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right, frameWeights(false));
+  {
+    ScopedMs timer(&line_ms_);
+    std::vector<ResidualSpec> lines = lines_.residuals(window_, -1, frameWeights(true));
+    for (ResidualSpec& r : lines) visual.push_back(std::move(r));
+  }
   std::set<BlockKey> landmarks;
   for (const ResidualSpec& r : visual) {
-    for (std::size_t b = 0; b < r.keys.size(); ++b)
-      if (r.keys[b] < 0 && landmarks.insert(r.keys[b]).second) solver.addParameterBlock(r.blocks[b], 1, nullptr, true);
-    solver.addResidual(r.cost.get(), r.robust ? &huber_ : nullptr, r.blocks);
+    for (std::size_t b = 0; b < r.keys.size(); ++b) {
+      if (r.keys[b] >= 0 || !landmarks.insert(r.keys[b]).second) continue;
+      if (r.line)
+        solver.addParameterBlock(r.blocks[b], kLineAmbientSize, &line_manifold_, true);
+      else
+        solver.addParameterBlock(r.blocks[b], 1, nullptr, true);
+    }
+    solver.addResidual(r.cost.get(), lossOf(r), r.blocks);
   }
   SchurLmOptions so;
   so.max_iterations = max_iterations;
   so.max_time_s = options_.solver.max_solver_time_s;
+  ScopedMs timer(&solver_ms_);
   solver.solve(so);
+}
+
+ceres::LossFunction* EstimatorCore::lossOf(const ResidualSpec& r) {
+  if (!r.robust) return nullptr;
+  return r.line ? static_cast<ceres::LossFunction*>(&line_huber_) : &huber_;
+}
+
+std::map<FrameId, double> EstimatorCore::frameWeights(bool for_lines) const {
+  // Patent: with more than N lines matched in a frame, points and lines get fixed weights (line-dominant);
+  // otherwise the weights follow the counts. Costs are scaled by 2 w, so equal weights leave them unchanged.
+  std::map<FrameId, double> w;
+  const LineOptions& o = options_.lines;
+  if (!o.weighting) return w;
+  for (int k = 0; k < window_.size(); ++k) {
+    const FrameId id = window_[k].id;
+    const int n_l = lines_.countObservedIn(id);
+    const int n_p = points_.countObservedIn(id);
+    double wp = 0.5, wl = 0.5;
+    if (n_l > o.weighting_min_lines) {
+      wp = o.point_weight;
+      wl = o.line_weight;
+    } else if (n_p + n_l > 0) {
+      wp = static_cast<double>(n_p) / (n_p + n_l);
+      wl = static_cast<double>(n_l) / (n_p + n_l);
+    }
+    w[id] = 2.0 * (for_lines ? wl : wp);
+  }
+  return w;
 }
 
 void EstimatorCore::marginaliseOldest() {
@@ -153,7 +201,7 @@ void EstimatorCore::marginaliseOldest() {
     m.addResidual(r.cost, nullptr, r.keys);
   }
   std::vector<BlockKey> drop = drop_frame;
-  std::vector<ResidualSpec> visual = points_.residuals(window_, old_id);
+  std::vector<ResidualSpec> visual = points_.residuals(window_, old_id, false, frameWeights(false));
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
       if (r.keys[b] >= 0) {
@@ -165,12 +213,24 @@ void EstimatorCore::marginaliseOldest() {
     }
     m.addResidual(r.cost, r.robust ? &huber_ : nullptr, r.keys);
   }
+  {
+    ScopedMs timer(&line_ms_);
+    for (const ResidualSpec& r : lines_.residuals(window_, old_id, frameWeights(true))) {
+      regFrameKey(r.keys[0]);
+      if (registered.insert(r.keys[1]).second) {
+        m.addParameterBlock(r.keys[1], r.blocks[1], kLineAmbientSize, &line_manifold_);
+        drop.push_back(r.keys[1]);
+      }
+      m.addResidual(r.cost, lossOf(r), r.keys);
+    }
+  }
   // Frame blocks must be registered even if nothing else touches them (a lone oldest frame).
   for (BlockKey k : drop_frame) regFrameKey(k);
   std::shared_ptr<const MarginalizationPrior> prior = m.marginalise(drop);
   priors_ = std::move(kept_priors);
   if (prior) priors_.push_back(prior);
   points_.removeFrame(window_, old_id);
+  lines_.removeFrame(old_id);
   window_.popOldest();
 }
 
@@ -199,6 +259,7 @@ void EstimatorCore::dropFrame(int index) {
   }
   priors_ = std::move(next);
   points_.removeFrame(window_, id);
+  lines_.removeFrame(id);
   window_.removeMerging(index);
 }
 

@@ -73,9 +73,15 @@ int PointLandmarks::triangulate(const Window& window) {
   return n;
 }
 
-std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameId host_only, bool all_right) {
+std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameId host_only, bool all_right,
+                                                    const std::map<FrameId, double>& frame_weight) {
   std::vector<ResidualSpec> out;
-  const double sqrt_info = pointSqrtInformation(options_.focal_length, options_.pixel_sigma);
+  const double base_sqrt_info = pointSqrtInformation(options_.focal_length, options_.pixel_sigma);
+  const auto sqrtInfo = [&](FrameId f) {
+    if (frame_weight.empty()) return base_sqrt_info;
+    const auto w = frame_weight.find(f);
+    return w == frame_weight.end() ? base_sqrt_info : base_sqrt_info * std::sqrt(w->second);
+  };
   for (auto& [id, lm] : landmarks_) {
     if (host_only < 0) lm.used = false;
     if (!usable(lm)) continue;
@@ -91,7 +97,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
         if (!ho.has_right) continue;
         // Kind 3: left -> right in the host frame; constrains the inverse depth only.
         ResidualSpec r;
-        r.cost = std::make_shared<PointStereoFactor>(ho.uv0, ho.uv1, T_B_C0_, *T_B_C1_, sqrt_info);
+        r.cost = std::make_shared<PointStereoFactor>(ho.uv0, ho.uv1, T_B_C0_, *T_B_C1_, sqrtInfo(fid));
         r.robust = true;
         r.blocks = {&lm.inv_depth};
         r.keys = {lm_key};
@@ -99,6 +105,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
         continue;
       }
       // Kind 1: host cam0 -> this frame's cam0.
+      const double sqrt_info = sqrtInfo(fid);
       ResidualSpec r1;
       r1.cost = std::make_shared<PointReprojectionFactor>(ho.uv0, o.uv0, T_B_C0_, T_B_C0_, sqrt_info);
       r1.robust = true;
@@ -205,6 +212,12 @@ int PointLandmarks::countTriangulatedIn(FrameId frame) const {
   int n = 0;
   for (const auto& [id, lm] : landmarks_)
     if (lm.triangulated && lm.obs.count(frame)) ++n;
+  return n;
+}
+
+int PointLandmarks::countObservedIn(FrameId frame) const {
+  int n = 0;
+  for (const auto& [id, lm] : landmarks_) n += lm.obs.count(frame) ? 1 : 0;
   return n;
 }
 

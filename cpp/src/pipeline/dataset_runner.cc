@@ -82,7 +82,9 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
   system.finish();
 
   summary.results = system.trajectory();
-  summary.map_points = system.map();
+  SystemMap map = system.map();
+  summary.map_points = std::move(map.points);
+  summary.map_lines = std::move(map.lines);
   summary.dropped_frames = system.droppedFrames();
   summary.processed_frames = static_cast<int>(summary.results.size());
   for (const FrameResult& r : summary.results) {
@@ -121,19 +123,22 @@ void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {
   writeEurocCsv((fs::path(out_dir) / "trajectory.csv").string(), states);
   MapGeometry map;
   map.points = summary.map_points;
+  for (const MapLine& l : summary.map_lines) map.segments.push_back(Segment3{l.a, l.b});
   writePly((fs::path(out_dir) / "map.ply").string(), map);
+  writeMapLinesCsv((fs::path(out_dir) / "map_lines.csv").string(), summary.map_lines);
 
   const std::string timing_path = (fs::path(out_dir) / "timing.csv").string();
   std::FILE* f = std::fopen(timing_path.c_str(), "w");
   if (f == nullptr) throw InputError(timing_path, 0, "cannot write");
   std::fprintf(f, "#timestamp [ns],frontend_ms,backend_ms,total_ms,point_ms,line_ms,points,stereo_points,lines,"
-                  "keyframe,status,point_cpu_ms,line_cpu_ms,backend_cpu_ms\n");
+                  "keyframe,status,point_cpu_ms,line_cpu_ms,backend_cpu_ms,line_backend_ms,solver_ms,"
+                  "landmark_points,landmark_lines\n");
   for (const FrameResult& r : summary.results) {
-    std::fprintf(f, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d,%d,%.3f,%.3f,%.3f\n",
+    std::fprintf(f, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d\n",
                  static_cast<long long>(r.estimate.t), r.frontend_ms, r.backend_ms, r.frontend_ms + r.backend_ms,
                  r.point_ms, r.line_ms, r.tracked_points, r.stereo_points, r.tracked_lines,
                  r.estimate.keyframe ? 1 : 0, static_cast<int>(r.estimate.status), r.point_cpu_ms, r.line_cpu_ms,
-                 r.backend_cpu_ms);
+                 r.backend_cpu_ms, r.line_backend_ms, r.solver_ms, r.estimate.num_points, r.estimate.num_lines);
   }
   std::fclose(f);
 }

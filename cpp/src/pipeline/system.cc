@@ -205,6 +205,8 @@ struct System::Impl {
         r.estimate = estimator.addFrame(item->obs);
         r.backend_cpu_ms = threadCpuMs() - c0;
         r.backend_ms = msSince(t0);
+        r.line_backend_ms = r.estimate.line_ms;
+        r.solver_ms = r.estimate.solver_ms;
         r.point_cpu_ms = item->point_cpu_ms;
         r.line_cpu_ms = item->line_cpu_ms;
         r.frontend_ms = item->frontend_ms;
@@ -371,10 +373,10 @@ std::vector<FrameResult> System::trajectory() const {
   return impl_->results;
 }
 
-std::vector<Vec3> System::map() const {
+SystemMap System::map() const {
   // The estimator is only touched from its own thread while running; read it once the stream has finished.
   if (!impl_->finished) return {};
-  return impl_->estimator.landmarkPositions();
+  return SystemMap{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines()};
 }
 
 }  // namespace linnet

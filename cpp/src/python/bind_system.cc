@@ -101,6 +101,28 @@ py::array_t<double> pointsToArray(const std::vector<Vec3>& pts) {
   return a;
 }
 
+py::dict mapToDict(const std::vector<Vec3>& points, const std::vector<MapLine>& lines) {
+  const py::ssize_t n = static_cast<py::ssize_t>(lines.size());
+  py::array_t<double> segs({n, py::ssize_t(2), py::ssize_t(3)});
+  py::array_t<std::int64_t> ids(n);
+  py::array_t<int> obs(n);
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const MapLine& l = lines[static_cast<std::size_t>(i)];
+    for (int k = 0; k < 3; ++k) {
+      segs.mutable_at(i, 0, k) = l.a[k];
+      segs.mutable_at(i, 1, k) = l.b[k];
+    }
+    ids.mutable_at(i) = l.id;
+    obs.mutable_at(i) = l.observations;
+  }
+  py::dict d;
+  d["points"] = pointsToArray(points);
+  d["lines"] = segs;
+  d["line_ids"] = ids;
+  d["line_observations"] = obs;
+  return d;
+}
+
 }  // namespace
 
 void bindSystem(py::module_& m) {
@@ -150,7 +172,11 @@ void bindSystem(py::module_& m) {
       .def_readonly("backend_ms", &FrameResult::backend_ms)
       .def_readonly("point_cpu_ms", &FrameResult::point_cpu_ms)
       .def_readonly("line_cpu_ms", &FrameResult::line_cpu_ms)
-      .def_readonly("backend_cpu_ms", &FrameResult::backend_cpu_ms);
+      .def_readonly("backend_cpu_ms", &FrameResult::backend_cpu_ms)
+      .def_readonly("line_backend_ms", &FrameResult::line_backend_ms)
+      .def_readonly("solver_ms", &FrameResult::solver_ms)
+      .def_property_readonly("landmark_points", [](const FrameResult& r) { return r.estimate.num_points; })
+      .def_property_readonly("landmark_lines", [](const FrameResult& r) { return r.estimate.num_lines; });
 
   py::class_<System>(m, "System", "Stereo/mono + IMU SLAM system: add_imu / add_stereo / add_mono, then finish()")
       .def(py::init<const Config&>(), py::arg("config"))
@@ -182,7 +208,11 @@ void bindSystem(py::module_& m) {
       .def("trajectory", [](const System& s, bool only_with_pose) { return resultsToArrays(s.trajectory(), only_with_pose); },
            py::arg("only_with_pose") = true, "dict of numpy arrays: t_ns, position, quaternion_xyzw, velocity, ...")
       .def("results", &System::trajectory, "list of FrameResult")
-      .def("map", [](const System& s) { return pointsToArray(s.map()); }, "N x 3 landmark positions in W")
+      .def("map", [](const System& s) {
+             const SystemMap map = s.map();
+             return mapToDict(map.points, map.lines);
+           }, "dict: points (N x 3), lines (M x 2 x 3 segment endpoints), line_ids (M), line_observations (M); W, "
+              "metres; empty until finish()")
       .def_property_readonly("dropped_frames", &System::droppedFrames);
 
   py::class_<RunSummary>(m, "RunSummary", "Result of a dataset run")
@@ -200,10 +230,11 @@ void bindSystem(py::module_& m) {
       .def_readonly("image_load_cpu_s", &RunSummary::image_load_cpu_s)
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
-      .def("map", [](const RunSummary& r) { return pointsToArray(r.map_points); })
+      .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },
+           "dict: points (N x 3), lines (M x 2 x 3), line_ids (M), line_observations (M); W, metres")
       .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
       .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
-           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply into out_dir");
+           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv into out_dir");
 
   m.def("run_euroc", [](const std::string& dataset, const Config& config, int max_frames, double start_s,
                         std::optional<py::function> progress) {

@@ -19,7 +19,8 @@ class ViewInputError(click.ClickException):
 @click.option("--save", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write a rerun recording (.rrd) instead of opening the viewer (works headless).")
 def COMMAND(run_dir, gt, save):
-    """Show a run folder (from `linnet run`) in the rerun viewer: estimate, SE3-aligned ground truth, map.ply.
+    """Show a run folder (from `linnet run`) in the rerun viewer: estimate, SE3-aligned ground truth, map.ply
+    (line segments from map_lines.csv when map.ply has none).
 
     Needs the optional rerun-sdk package (pip install 'linnet[viewer]').
     """

@@ -17,6 +17,7 @@
 #include "linnet/core/frame_observations.h"
 #include "linnet/core/pose.h"
 #include "linnet/estimator/estimator_options.h"
+#include "linnet/estimator/line_landmarks.h"
 #include "linnet/imu/imu_types.h"
 
 namespace linnet {
@@ -31,7 +32,11 @@ struct EstimatorOutput {
   Pose T_W_B;
   Vec3 v_W = Vec3::Zero(), b_a = Vec3::Zero(), b_g = Vec3::Zero();
   bool keyframe = false;
-  int num_points = 0;          // landmarks used in the last solve
+  int num_points = 0;          // point landmarks used in the last solve
+  int num_lines = 0;           // line landmarks used in the last solve
+  double line_ms = 0.0;        // back-end wall time of the line-only steps this frame (observe, triangulate, build
+                               // residuals, reject outliers, marginalise), ms; the joint solve is in solver_ms
+  double solver_ms = 0.0;      // wall time of the window solve (points, lines, IMU, prior), ms
   int reinitialisations = 0;   // so far
   double solve_ms = 0.0;       // back-end wall time for this frame
 };
@@ -53,6 +58,8 @@ class Estimator {
   EstimatorOutput addFrame(const FrameObservations& obs);
   /// Triangulated points of the current window, in W.
   std::vector<Vec3> landmarkPositions() const;
+  /// The line map: lines that left the window and the window's triangulated lines, finite segments in W.
+  std::vector<MapLine> mapLines() const;
 
  private:
   std::unique_ptr<EstimatorCore> core_;

@@ -125,6 +125,53 @@ struct SolverOptions {
   }
 };
 
+/// Line landmarks in the window (DESIGN B1 "Line parameterisation", "Optimisation"; thesis ch. 3-4; patent for
+/// the point / line weighting).
+struct LineOptions {
+  bool enabled = true;                // use the front-end's lines (when pipeline.use_lines delivers them)
+  double pixel_sigma = 1.5;           // std of an endpoint-to-line distance, pixels
+  double huber_px = 1.0;              // Huber threshold on the whitened line residual (units of pixel_sigma)
+  double outlier_px = 3.0;            // lines whose mean endpoint distance exceeds this after a solve are removed
+                                      // (thesis: 3 px), pixels
+  double min_plane_angle_deg = 1.0;   // triangulation: smallest angle between the two back-projection planes (stereo
+                                      // pair or two frames; small = line along the baseline / motion), deg
+  double min_view_angle_deg = 5.0;    // a line seen within this angle of end-on (direction vs the viewing ray of its
+                                      // midpoint, newest frame) is degenerate and removed, deg
+  double min_depth_m = 0.1;           // depth range of the back-projected endpoints in every observing camera, m
+  double max_depth_m = 30.0;
+  double max_length_m = 20.0;         // longest triangulated segment, m
+  double max_extent_gap_m = 0.5;      // the newest observation's back-projected segment farther than this from the
+                                      // line's extent (drifted off / mismatched track): line removed, m
+  int min_observations = 2;           // window frames a line must be seen in to enter a solve (>= 2)
+  bool right_residuals = true;        // cam1 residuals where the line is matched in the right image
+  bool weighting = false;             // patent point / line weighting per frame (see below); off: it did not help
+  int weighting_min_lines = 30;       // more lines than this in a frame: the fixed weights below
+  double point_weight = 0.2;          // patent: w_p, w_l (line-dominant in low texture); otherwise the weights
+  double line_weight = 0.8;           // follow the counts (n_p, n_l) / (n_p + n_l). Costs are scaled by 2 w
+
+  template <class V>
+  void visit(V& v) {
+    v("enabled", enabled, "use lines in the estimator when the front-end delivers them");
+    v("pixel_sigma", pixel_sigma, "line endpoint distance std, pixels", 0.01, 100.0);
+    v("huber_px", huber_px, "Huber threshold of line residuals, whitened units", 0.01, 100.0);
+    v("outlier_px", outlier_px, "mean endpoint distance limit, pixels", 0.1, 1000.0);
+    v("min_plane_angle_deg", min_plane_angle_deg, "smallest back-projection plane angle to triangulate, deg", 0.0,
+      90.0);
+    v("min_view_angle_deg", min_view_angle_deg, "lines seen closer to end-on are removed, deg", 0.0, 90.0);
+    v("min_depth_m", min_depth_m, "nearest endpoint depth, m", 0.001, 100.0);
+    v("max_depth_m", max_depth_m, "farthest endpoint depth, m", 0.1, 100000.0);
+    v("max_length_m", max_length_m, "longest line segment, m", 0.01, 100000.0);
+    v("max_extent_gap_m", max_extent_gap_m, "largest gap of a new observation to the line's extent, m", 0.0,
+      1000.0);
+    v("min_observations", min_observations, "frames a line must be seen in to enter a solve", 2, 1000);
+    v("right_residuals", right_residuals, "cam1 line residuals where matched");
+    v("weighting", weighting, "patent point / line weighting per frame");
+    v("weighting_min_lines", weighting_min_lines, "lines in a frame above which the fixed weights apply", 0, 100000);
+    v("point_weight", point_weight, "point weight w_p with many lines", 0.0, 1.0);
+    v("line_weight", line_weight, "line weight w_l with many lines", 0.0, 1.0);
+  }
+};
+
 struct EstimatorOptions {
   int window_size = 7;               // keyframes in the window (plus the newest frame); full V1_02 replay:
                                      // 7 vs 10 gives APE 11 vs 15 mm for ~15% less CPU
@@ -132,6 +179,7 @@ struct EstimatorOptions {
   KeyframeOptions keyframe;
   InitOptions init;
   FailureOptions failure;
+  LineOptions lines;
 
   template <class V>
   void visit(V& v) {
@@ -140,6 +188,7 @@ struct EstimatorOptions {
     v.section("keyframe", keyframe);
     v.section("init", init);
     v.section("failure", failure);
+    v.section("lines", lines);
   }
 };
 

@@ -4,6 +4,7 @@
 //   pose        double[7] = [px, py, pz, qx, qy, qz, qw]   T_W_B, quaternion in Eigen coeffs order (Hamilton)
 //   speed-bias  double[9] = [v_W (3), b_a (3), b_g (3)]     Euclidean
 //   inverse depth double[1]                                  Euclidean
+//   line        double[6] = [n (3), v (3)]                  Plücker coordinates in W, unit norm (LineManifold)
 //
 // PoseManifold: tangent [dp, dtheta] (6), Plus(x, d) = (p + dp, q * Exp(dtheta)) -- the position is perturbed
 // in W, the rotation on the right (DESIGN A3). Minus(y, x) = (p_y - p_x, Log(q_x^-1 q_y)).
@@ -25,6 +26,8 @@ namespace linnet {
 inline constexpr int kPoseAmbientSize = 7;
 inline constexpr int kPoseTangentSize = 6;
 inline constexpr int kSpeedBiasSize = 9;
+inline constexpr int kLineAmbientSize = 6;
+inline constexpr int kLineTangentSize = 4;
 
 /// SE(3)-like manifold R^3 x SO(3) for a pose block [p, q(xyzw)] with right rotation perturbation.
 class PoseManifold final : public ceres::Manifold {
@@ -38,6 +41,22 @@ class PoseManifold final : public ceres::Manifold {
   /// y_minus_x = (p_y - p_x, Log(q_x^-1 q_y)).
   bool Minus(const double* y, const double* x, double* y_minus_x) const override;
   /// d Minus(y, x) / d y at y = x, 6 x 7, row-major.
+  bool MinusJacobian(const double* x, double* jacobian) const override;
+};
+
+/// The 4-DoF manifold of 3D lines (DESIGN B1; Bartoli & Sturm 2005): the block holds the Plücker coordinates
+/// L = [n; v] in W, the update is the orthonormal representation's: with (U, W) = toOrthonormal(L) (plucker.h),
+/// Plus(L, [dpsi (3), dphi]) = fromOrthonormal(U Exp(dpsi), W R(dphi)), a unit-norm L. Minus(L2, L1) =
+/// (Log(U1^T U2), phi2 - phi1). PlusJacobian = [[0, -w1 u3, w1 u2, -w2 u1], [w2 u3, 0, -w2 u1, w1 u2]] (6 x 4);
+/// its columns are orthogonal with squared norms (w2^2, w1^2, 1, 1), so MinusJacobian is its pseudo-inverse.
+/// Factors give Ceres the ambient Jacobian d r / d L directly (residuals are invariant to the scale of L).
+class LineManifold final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return kLineAmbientSize; }
+  int TangentSize() const override { return kLineTangentSize; }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override;
+  bool PlusJacobian(const double* x, double* jacobian) const override;
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override;
   bool MinusJacobian(const double* x, double* jacobian) const override;
 };
 

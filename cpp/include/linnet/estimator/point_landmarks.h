@@ -48,7 +48,9 @@ class PointLandmarks {
   /// Residuals of the landmarks usable in a solve (triangulated, observed in >= 2 frames). Marks them used.
   /// If host_only >= 0, only the landmarks hosted in that frame (for marginalisation), without touching `used`.
   /// all_right: cam1 residuals in every observing frame whatever solver.right_residuals_all_frames says.
-  std::vector<ResidualSpec> residuals(const Window& window, FrameId host_only = -1, bool all_right = false);
+  /// frame_weight (may be empty): cost weight per observing frame (point / line weighting).
+  std::vector<ResidualSpec> residuals(const Window& window, FrameId host_only = -1, bool all_right = false,
+                                      const std::map<FrameId, double>& frame_weight = {});
   /// Ids of the landmarks hosted in `frame` that residuals(window, frame) covers.
   std::vector<std::int64_t> hostedUsable(FrameId frame) const;
   /// Drops the frame's observations. Landmarks hosted there are re-anchored to their next observing frame
@@ -62,6 +64,8 @@ class PointLandmarks {
   int countTriangulatedIn(FrameId frame) const;
   /// Landmarks that took part in the last solve.
   int countUsed() const;
+  /// Landmarks observed in `frame` (triangulated or not).
+  int countObservedIn(FrameId frame) const;
   /// Pairs (uv0 in frame a, uv0 in frame b) of the landmarks seen in both frames.
   std::vector<std::pair<Vec2, Vec2>> correspondences(FrameId a, FrameId b) const;
   /// Triangulated landmarks observed in `frame`: world positions and that frame's cam0 observation.

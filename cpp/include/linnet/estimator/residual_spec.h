@@ -14,6 +14,7 @@ namespace linnet {
 struct ResidualSpec {
   std::shared_ptr<ceres::CostFunction> cost;
   bool robust = false;                 // wrap in the Huber loss of the visual residuals
+  bool line = false;                   // a line residual (its own Huber threshold), else a point or IMU residual
   std::vector<double*> blocks;         // parameter blocks, in the cost function's order
   std::vector<std::int64_t> keys;      // the same blocks as marginalisation keys
 };

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "linnet/core/map_line.h"
 #include "linnet/core/types.h"
 
 namespace linnet {
@@ -38,6 +39,12 @@ void writePly(const std::string& path, const MapGeometry& map, const Rgb& defaul
 void writeObj(const std::string& path, const MapGeometry& map, const Rgb& default_color = {200, 200, 200});
 /// By extension: ".obj" -> OBJ, else PLY.
 void writeMap(const std::string& path, const MapGeometry& map);
+
+/// Writes the line map as csv: a header `#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations`, then one line
+/// per map line (W, metres). InputError if the file cannot be written.
+void writeMapLinesCsv(const std::string& path, const std::vector<MapLine>& lines);
+/// Reads a file written by writeMapLinesCsv. InputError "<file>:<line>: ..." on bad content.
+std::vector<MapLine> readMapLinesCsv(const std::string& path);
 
 /// Reads an ascii PLY with vertex x y z [red green blue] and optional edge elements (as written by writePly):
 /// vertices used by edges become segments, the others points. InputError "<file>:<line>: ..." on bad content.

@@ -31,6 +31,7 @@ struct RunSummary {
   double image_load_cpu_s = 0.0;  // CPU time spent reading and decoding the images (s), part of cpu_time_s
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;
+  std::vector<MapLine> map_lines;
 };
 
 /// The config for a EuRoC folder: `base` with cam0/cam1/imu calibration replaced by the dataset's sensor.yaml.
@@ -40,7 +41,8 @@ Config configForEuroc(const std::string& dataset_path, const Config& base);
 RunSummary runEuroc(const std::string& dataset_path, const Config& config, const RunOptions& options = {});
 
 /// Writes DIR/trajectory.tum (a pose per frame with a pose, body frame, seconds), DIR/trajectory.csv (EuRoC style
-/// with velocity and biases), DIR/timing.csv (per frame ms) and DIR/map.ply. Creates DIR.
+/// with velocity and biases), DIR/timing.csv (per frame ms), DIR/map.ply (points and line segments as PLY edges) and
+/// DIR/map_lines.csv (`id,x0,y0,z0,x1,y1,z1,observations`, W, metres). Creates DIR.
 void writeRunOutputs(const RunSummary& summary, const std::string& out_dir);
 
 }  // namespace linnet

@@ -26,6 +26,12 @@
 
 namespace linnet {
 
+/// The 3D map: the window's point landmarks and the line map (lines that left the window stay), in W.
+struct SystemMap {
+  std::vector<Vec3> points;
+  std::vector<MapLine> lines;
+};
+
 /// Everything the System reports for one processed frame.
 struct FrameResult {
   EstimatorOutput estimate;
@@ -36,6 +42,8 @@ struct FrameResult {
   double line_ms = 0.0;      // line worker
   double frontend_ms = 0.0;  // front-end wall time (max of the two workers when parallel)
   double backend_ms = 0.0;   // estimator wall time
+  double line_backend_ms = 0.0;  // of which the line-only steps (EstimatorOutput::line_ms)
+  double solver_ms = 0.0;        // of which the window solve
   // CPU time of the same stages (thread CPU clock): what each stage costs, whatever else shares the core
   double point_cpu_ms = 0.0;
   double line_cpu_ms = 0.0;
@@ -67,8 +75,8 @@ class System {
 
   /// Results of every processed frame so far, in time order.
   std::vector<FrameResult> trajectory() const;
-  /// Landmarks of the current window, in W.
-  std::vector<Vec3> map() const;
+  /// The map (window points, all good lines), in W; empty until finish().
+  SystemMap map() const;
   /// Frames dropped in real-time mode (or frames the IMU never covered).
   int droppedFrames() const { return dropped_.load(); }
   const Config& config() const { return config_; }

@@ -1,0 +1,46 @@
+// The line residual of DESIGN B1 (thesis ch. 4, eqs. 4-33..4-40): distances of an observed segment's endpoints to
+// the projection of a 3D line, in normalised image coordinates.
+//
+// The line is a Plücker block L_W = [n_W; v_W] (LineManifold, the orthonormal update). Seen from camera C of frame j
+// (T_W_C = T_W_Bj T_B_C): L_C = T_C_W L_W, i.e. n_C = R_C_W (n_W - c x v_W) with c the camera centre in W; the image
+// line in normalised coordinates is l = n_C, and
+//     r = sqrt_info * [s^T l, e^T l] / sqrt(l1^2 + l2^2)      (s, e: observed endpoints, homogenised).
+// Parameter blocks: pose T_W_Bj (7, PoseManifold), line (6, LineManifold). The Jacobians are analytic along the chain
+// orthonormal -> Plücker W -> Plücker C -> image line -> residual: the factor returns d r / d L_W (ambient; Ceres and
+// the Schur solver multiply by LineManifold's PlusJacobian, the orthonormal -> Plücker step) and the pose Jacobian in
+// the tangent space [dp, dtheta] converted by tangentToAmbientPose().
+#pragma once
+
+#include <ceres/sized_cost_function.h>
+
+#include "linnet/core/pose.h"
+#include "linnet/core/types.h"
+
+namespace linnet {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6> {
+ public:
+  /// s, e: endpoints observed in camera C (normalised, undistorted); T_B_C: that camera's extrinsics; sqrt_info:
+  /// focal / sigma (sigma in pixels), optionally times a weight.
+  LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info);
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+
+  /// Residual, the tangent pose Jacobian (w.r.t. [dp, dtheta]) and the Jacobian w.r.t. the Plücker coordinates;
+  /// outputs may be nullptr. False if the line projects to a point or the result is not finite.
+  bool evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose,
+                Eigen::Matrix<double, 2, 6>* J_line) const;
+
+ private:
+  Vec3 s_, e_;  // homogenised endpoints
+  Pose T_B_C_;
+  double sqrt_info_;
+};
+
+/// Mean endpoint-to-line distance in pixels of one observation (focal_px times the normalised distances), +infinity
+/// if the line projects to a point.
+double lineReprojectionErrorPx(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double focal_px);
+
+}  // namespace linnet

@@ -1,0 +1,113 @@
+// Line landmarks of the sliding window (DESIGN B1; thesis ch. 3-4): observations per frame, a Plücker block in W
+// (optimised through LineManifold, the orthonormal 4-DoF update), triangulation from the stereo pair of one frame or
+// from two frames of the window (two back-projection planes), the endpoint-to-line residuals for cam0 and cam1,
+// outlier and degeneracy rejection, and a map of finite segments that outlives the window.
+//
+// Same shape as PointLandmarks: observe / triangulate / residuals / removeFrame / rejectOutliers, keys from
+// lineBlockKey(). A line's "host" for marginalisation is its oldest observing window frame: when that frame is
+// marginalised, every residual of the line goes into the prior with the line block dropped (as the points hosted
+// there), and the line lives on in the window with its remaining observations.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <vector>
+
+#include "linnet/core/frame_observations.h"
+#include "linnet/core/map_line.h"
+#include "linnet/core/pose.h"
+#include "linnet/estimator/estimator_options.h"
+#include "linnet/estimator/residual_spec.h"
+#include "linnet/estimator/window.h"
+#include "linnet/geometry/plucker.h"
+
+namespace linnet {
+
+struct LineFrameObs {
+  Vec2 s0 = Vec2::Zero(), e0 = Vec2::Zero();  // normalised endpoints, cam0
+  bool has_right = false;
+  Vec2 s1 = Vec2::Zero(), e1 = Vec2::Zero();  // normalised endpoints, cam1
+};
+
+struct LineLandmark {
+  std::int64_t id = -1;
+  std::map<FrameId, LineFrameObs> obs;  // window frames, oldest first
+  std::array<double, 6> plucker{};      // [n_W, v_W] (a parameter block, LineManifold)
+  bool triangulated = false;
+  bool used = false;                    // took part in the last solve
+  int observations = 0;                 // frames that observed it over its life (the window's and earlier ones)
+  bool has_extent = false;
+  Vec3 a = Vec3::Zero(), b = Vec3::Zero();  // finite segment: extreme back-projected endpoints on the line, W
+
+  Vec6 L() const { return Eigen::Map<const Vec6>(plucker.data()); }
+  void setL(const Vec6& L) { Eigen::Map<Vec6>(plucker.data()) = L; }
+};
+
+/// Why lines were removed by rejectOutliers (for logs and tests).
+struct LineRejectionStats {
+  int reprojection = 0;  // mean endpoint distance above outlier_px
+  int depth = 0;         // an endpoint behind a camera / out of the depth range, or too long
+  int end_on = 0;        // seen end-on (degenerate)
+  int drifted = 0;       // newest observation off the line's extent
+};
+
+class LineLandmarks {
+ public:
+  LineLandmarks(const LineOptions& options, double focal_length, const Pose& T_B_C0, std::optional<Pose> T_B_C1);
+
+  /// Records the frame's line observations (ids may be new or known).
+  void observe(FrameId frame, const std::vector<LineObservation>& lines);
+  /// Triangulates the lines that are not yet: the candidate (stereo pair of a frame, or cam0 in two frames) with the
+  /// widest angle between the back-projection planes, if above options.min_plane_angle_deg, and if every observation
+  /// back-projects in the depth range. Returns the number of newly triangulated lines.
+  int triangulate(const Window& window);
+  /// Residuals of the usable lines (triangulated, seen in >= min_observations window frames); marks them used. If
+  /// host_only >= 0, only the lines whose oldest window observation is that frame (marginalisation), without touching
+  /// `used`. frame_weight (may be empty): cost weight per observing frame (point / line weighting).
+  std::vector<ResidualSpec> residuals(const Window& window, FrameId host_only = -1,
+                                      const std::map<FrameId, double>& frame_weight = {});
+  /// Drops the frame's observations; lines left without window observations move to the map (if they were good).
+  void removeFrame(FrameId frame);
+  /// Removes used lines that fail a check after a solve (reprojection, depth, end-on, drift). Updates the extents of
+  /// the remaining lines with the newest frame's observation. Returns how many were removed.
+  int rejectOutliers(const Window& window);
+  /// Moves every triangulated, used line to the map and empties the window's lines (a new window starts).
+  void clear();
+
+  /// Lines observed in `frame` that are triangulated.
+  int countTriangulatedIn(FrameId frame) const;
+  /// Lines that took part in the last solve.
+  int countUsed() const;
+  /// Lines observed in `frame` (triangulated or not).
+  int countObservedIn(FrameId frame) const;
+  /// The map: lines that left the window plus the window's triangulated lines with an extent.
+  std::vector<MapLine> mapLines() const;
+  const std::map<std::int64_t, LineLandmark>& all() const { return landmarks_; }
+  const LineRejectionStats& lastRejections() const { return rejections_; }
+
+  /// Triangulation of one line from its window observations (exposed for tests). False if no candidate passes.
+  bool triangulateOne(const Window& window, LineLandmark& lm) const;
+
+ private:
+  /// Mean endpoint distance in pixels over the line's window observations (cam0 and cam1).
+  double meanErrorPx(const Window& window, const LineLandmark& lm) const;
+  /// Back-projects an observed segment onto the line: the two 3D points, false if a ray misses the depth range.
+  bool backProject(const Vec6& L, const Pose& T_W_C, const Vec2& s, const Vec2& e, Vec3* a, Vec3* b) const;
+  /// Extends the line's extent by a back-projected segment (keeps the two extreme points along the line).
+  void extend(LineLandmark& lm, const Vec3& a, const Vec3& b) const;
+  bool usable(const LineLandmark& lm) const {
+    return lm.triangulated && lm.obs.size() >= static_cast<std::size_t>(std::max(2, options_.min_observations));
+  }
+  void archive(const LineLandmark& lm);
+
+  LineOptions options_;
+  double focal_length_;
+  Pose T_B_C0_;
+  std::optional<Pose> T_B_C1_;
+  std::map<std::int64_t, LineLandmark> landmarks_;
+  std::map<std::int64_t, MapLine> map_;  // lines that left the window (by id; a later track of the id replaces it)
+  LineRejectionStats rejections_;
+};
+
+}  // namespace linnet

@@ -1,0 +1,81 @@
+// Line residual (DESIGN B1) with analytic Jacobians; the derivation is in the comments of evaluate().
+#include "linnet/estimator/factors/line_factor.h"
+
+#include <cmath>
+#include <limits>
+
+#include "linnet/estimator/manifolds.h"
+#include "linnet/geometry/plucker.h"
+
+namespace linnet {
+
+LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info)
+    : s_(s.x(), s.y(), 1.0), e_(e.x(), e.y(), 1.0), T_B_C_(T_B_C), sqrt_info_(sqrt_info) {}
+
+bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual,
+                                      Eigen::Matrix<double, 2, 6>* J_pose, Eigen::Matrix<double, 2, 6>* J_line) const {
+  // Plücker W -> B -> C:  n_B = R^T (n_W - p x v_W), v_B = R^T v_W;  n_C = R_C_B (n_B - t_B_C x v_B).
+  const Mat3 Rt = T_W_B.R().transpose();
+  const Vec3 n_W = L_W.head<3>(), v_W = L_W.tail<3>();
+  const Vec3 n_B = Rt * (n_W - T_W_B.p.cross(v_W));
+  const Vec3 v_B = Rt * v_W;
+  const Mat3 R_C_B = T_B_C_.R().transpose();
+  const Vec3& t = T_B_C_.p;
+  const Vec3 l = R_C_B * (n_B - t.cross(v_B));  // image line, normalised coordinates
+  const double ln2 = l.x() * l.x() + l.y() * l.y();
+  if (!(ln2 > 1e-30)) return false;
+  const double ln = std::sqrt(ln2);
+  const double ds = s_.dot(l), de = e_.dot(l);
+  const Vec2 r = sqrt_info_ * Vec2(ds, de) / ln;
+  if (!r.allFinite()) return false;
+  if (residual != nullptr) *residual = r;
+  if (J_pose == nullptr && J_line == nullptr) return true;
+
+  // d r / d l: r_k = x_k . l / |l_12|  ->  x_k^T / |l_12| - (x_k . l) [l1, l2, 0] / |l_12|^3.
+  const Vec3 l12(l.x(), l.y(), 0.0);
+  Eigen::Matrix<double, 2, 3> A;
+  A.row(0) = (s_ / ln - ds / (ln2 * ln) * l12).transpose();
+  A.row(1) = (e_ / ln - de / (ln2 * ln) * l12).transpose();
+  A *= sqrt_info_;
+  const Eigen::Matrix<double, 2, 3> A_B = A * R_C_B;  // d r / d(n_B - t x v_B)
+  if (J_pose != nullptr) {
+    // p <- p + dp:             d n_B / dp = R^T [v_W]x,  d v_B / dp = 0.
+    // R <- R Exp(dtheta):      R^T -> (I - [dtheta]x) R^T, so d n_B / dtheta = [n_B]x, d v_B / dtheta = [v_B]x.
+    J_pose->leftCols<3>() = A_B * Rt * skew(v_W);
+    J_pose->rightCols<3>() = A_B * (skew(n_B) - skew(t) * skew(v_B));
+  }
+  if (J_line != nullptr) {
+    // d n_B / d n_W = R^T;  d n_B / d v_W = -R^T [p]x;  d v_B / d v_W = R^T.
+    J_line->leftCols<3>() = A_B * Rt;
+    J_line->rightCols<3>() = A_B * (-Rt * skew(T_W_B.p) - skew(t) * Rt);
+  }
+  return true;
+}
+
+bool LineReprojectionFactor::Evaluate(double const* const* parameters, double* residuals,
+                                      double** jacobians) const {
+  const Pose T_W_B = poseFromBlock(parameters[0]);
+  const Vec6 L = Eigen::Map<const Vec6>(parameters[1]);
+  const bool want_pose = jacobians != nullptr && jacobians[0] != nullptr;
+  const bool want_line = jacobians != nullptr && jacobians[1] != nullptr;
+  Vec2 r;
+  Eigen::Matrix<double, 2, 6> Jp, Jl;
+  if (!evaluate(T_W_B, L, &r, want_pose ? &Jp : nullptr, want_line ? &Jl : nullptr)) return false;
+  residuals[0] = r.x();
+  residuals[1] = r.y();
+  if (want_pose) tangentToAmbientPose<2>(Jp, parameters[0], jacobians[0]);
+  if (want_line) {
+    Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>> J(jacobians[1]);
+    J = Jl;
+  }
+  return true;
+}
+
+double lineReprojectionErrorPx(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double focal_px) {
+  const Vec3 l = transformPlucker(T_W_C.inverse(), L_W).head<3>();
+  const Vec2 d = lineEndpointDistances(l, s, e);
+  if (!d.allFinite()) return std::numeric_limits<double>::infinity();
+  return 0.5 * focal_px * (std::abs(d.x()) + std::abs(d.y()));
+}
+
+}  // namespace linnet

@@ -1,0 +1,284 @@
+// Line landmarks of the window (see line_landmarks.h).
+#include "linnet/estimator/line_landmarks.h"
+
+#include <cmath>
+
+#include "linnet/estimator/factors/line_factor.h"
+
+namespace linnet {
+
+namespace {
+constexpr double kDegToRad = M_PI / 180.0;
+}
+
+LineLandmarks::LineLandmarks(const LineOptions& options, double focal_length, const Pose& T_B_C0,
+                             std::optional<Pose> T_B_C1)
+    : options_(options), focal_length_(focal_length), T_B_C0_(T_B_C0), T_B_C1_(std::move(T_B_C1)) {}
+
+void LineLandmarks::observe(FrameId frame, const std::vector<LineObservation>& lines) {
+  for (const LineObservation& l : lines) {
+    LineLandmark& lm = landmarks_[l.id];
+    if (lm.id < 0) lm.id = l.id;
+    LineFrameObs o;
+    o.s0 = l.s0;
+    o.e0 = l.e0;
+    o.has_right = l.has_right && T_B_C1_.has_value();
+    o.s1 = l.s1;
+    o.e1 = l.e1;
+    if (lm.obs.emplace(frame, o).second) ++lm.observations;
+  }
+}
+
+bool LineLandmarks::backProject(const Vec6& L, const Pose& T_W_C, const Vec2& s, const Vec2& e, Vec3* a,
+                                Vec3* b) const {
+  const Vec2* ends[2] = {&s, &e};
+  Vec3* out[2] = {a, b};
+  for (int k = 0; k < 2; ++k) {
+    const Vec3 ray = T_W_C.q * Vec3(ends[k]->x(), ends[k]->y(), 1.0);
+    const std::optional<RayLinePoint> p = closestPointToRay(L, T_W_C.p, ray);
+    if (!p || p->ray_t < options_.min_depth_m || p->ray_t > options_.max_depth_m) return false;
+    *out[k] = p->on_line;
+  }
+  return true;
+}
+
+void LineLandmarks::extend(LineLandmark& lm, const Vec3& a, const Vec3& b) const {
+  const Vec6 L = lm.L();
+  const Vec3 u = pluckerDirection(L), P0 = pluckerClosestPointToOrigin(L);
+  double lo = (a - P0).dot(u), hi = (b - P0).dot(u);
+  if (lo > hi) std::swap(lo, hi);
+  if (lm.has_extent) {
+    const double ta = (lm.a - P0).dot(u), tb = (lm.b - P0).dot(u);
+    lo = std::min({lo, ta, tb});
+    hi = std::max({hi, ta, tb});
+  }
+  lm.a = P0 + lo * u;
+  lm.b = P0 + hi * u;
+  lm.has_extent = true;
+}
+
+bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const {
+  // Candidate plane pairs: the stereo pair of each observing frame, and cam0 of the oldest observation with cam0 of
+  // every later one. The widest plane angle wins.
+  double best_sin = -1.0;
+  Vec6 best = Vec6::Zero();
+  const auto consider = [&](const Eigen::Vector4d& p1, const Eigen::Vector4d& p2) {
+    double sin_angle = 0.0;
+    const Vec6 L = intersectPlanes(p1, p2, &sin_angle);
+    if (sin_angle > best_sin && L.allFinite()) {
+      best_sin = sin_angle;
+      best = L;
+    }
+  };
+  std::optional<Eigen::Vector4d> first;
+  for (const auto& [fid, o] : lm.obs) {
+    const WindowFrame* f = window.find(fid);
+    if (f == nullptr) continue;
+    const Pose T_W_B = f->T_W_B();
+    const Eigen::Vector4d p0 = backProjectionPlane(T_W_B * T_B_C0_, o.s0, o.e0);
+    if (o.has_right) consider(p0, backProjectionPlane(T_W_B * *T_B_C1_, o.s1, o.e1));
+    if (first) consider(*first, p0);
+    else first = p0;
+  }
+  if (best_sin < std::sin(options_.min_plane_angle_deg * kDegToRad)) return false;
+  const Vec6 L = normalisePlucker(best);
+  // Every cam0 observation must back-project in front of its camera, within the depth range; the segment short
+  // enough. The extent starts from these.
+  LineLandmark tmp = lm;
+  tmp.setL(L);
+  tmp.has_extent = false;
+  for (const auto& [fid, o] : lm.obs) {
+    const WindowFrame* f = window.find(fid);
+    if (f == nullptr) continue;
+    Vec3 a, b;
+    if (!backProject(L, f->T_W_B() * T_B_C0_, o.s0, o.e0, &a, &b)) return false;
+    extend(tmp, a, b);
+  }
+  if (!tmp.has_extent || (tmp.b - tmp.a).norm() > options_.max_length_m) return false;
+  tmp.triangulated = true;
+  if (meanErrorPx(window, tmp) > options_.outlier_px) return false;
+  lm = std::move(tmp);
+  return true;
+}
+
+int LineLandmarks::triangulate(const Window& window) {
+  int n = 0;
+  for (auto& [id, lm] : landmarks_)
+    if (!lm.triangulated && triangulateOne(window, lm)) ++n;
+  return n;
+}
+
+std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId host_only,
+                                                   const std::map<FrameId, double>& frame_weight) {
+  std::vector<ResidualSpec> out;
+  const double sqrt_info = focal_length_ / options_.pixel_sigma;
+  for (auto& [id, lm] : landmarks_) {
+    if (host_only < 0) lm.used = false;
+    if (!usable(lm)) continue;
+    if (host_only >= 0 && lm.obs.begin()->first != host_only) continue;
+    const std::int64_t key = lineBlockKey(id);
+    for (const auto& [fid, o] : lm.obs) {
+      WindowFrame* f = const_cast<Window&>(window).find(fid);
+      if (f == nullptr) continue;
+      double s = sqrt_info;
+      if (!frame_weight.empty()) {
+        const auto w = frame_weight.find(fid);
+        if (w != frame_weight.end()) s *= std::sqrt(w->second);
+      }
+      auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C) {
+        ResidualSpec r;
+        r.cost = std::make_shared<LineReprojectionFactor>(a, b, T_B_C, s);
+        r.robust = true;
+        r.line = true;
+        r.blocks = {f->pose.data(), lm.plucker.data()};
+        r.keys = {frameBlockKey(fid, BlockKind::kPose), key};
+        out.push_back(std::move(r));
+      };
+      add(o.s0, o.e0, T_B_C0_);
+      if (o.has_right && options_.right_residuals) add(o.s1, o.e1, *T_B_C1_);
+    }
+    if (host_only < 0) lm.used = true;
+  }
+  return out;
+}
+
+void LineLandmarks::archive(const LineLandmark& lm) {
+  if (!lm.triangulated || !lm.has_extent) return;
+  MapLine m;
+  m.id = lm.id;
+  m.a = lm.a;
+  m.b = lm.b;
+  m.observations = lm.observations;
+  map_[lm.id] = m;
+}
+
+void LineLandmarks::removeFrame(FrameId frame) {
+  for (auto it = landmarks_.begin(); it != landmarks_.end();) {
+    LineLandmark& lm = it->second;
+    lm.obs.erase(frame);
+    if (lm.obs.empty()) {
+      if (lm.used) archive(lm);
+      it = landmarks_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void LineLandmarks::clear() {
+  for (const auto& [id, lm] : landmarks_)
+    if (lm.used) archive(lm);
+  landmarks_.clear();
+}
+
+double LineLandmarks::meanErrorPx(const Window& window, const LineLandmark& lm) const {
+  const Vec6 L = lm.L();
+  double sum = 0.0;
+  int n = 0;
+  for (const auto& [fid, o] : lm.obs) {
+    const WindowFrame* f = window.find(fid);
+    if (f == nullptr) continue;
+    const Pose T_W_B = f->T_W_B();
+    sum += lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_);
+    ++n;
+    if (o.has_right) {
+      sum += lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_);
+      ++n;
+    }
+  }
+  return n == 0 ? 0.0 : sum / n;
+}
+
+int LineLandmarks::rejectOutliers(const Window& window) {
+  rejections_ = LineRejectionStats{};
+  const WindowFrame& newest = window.newest();
+  const Pose T_W_C = newest.T_W_B() * T_B_C0_;
+  const double min_sin_view = std::sin(options_.min_view_angle_deg * kDegToRad);
+  int removed = 0;
+  for (auto it = landmarks_.begin(); it != landmarks_.end();) {
+    LineLandmark& lm = it->second;
+    if (!lm.used) {
+      ++it;
+      continue;
+    }
+    const Vec6 L = lm.L();
+    bool bad = false;
+    if (!L.allFinite() || meanErrorPx(window, lm) > options_.outlier_px) {
+      ++rejections_.reprojection;
+      bad = true;
+    }
+    const auto o = lm.obs.find(newest.id);
+    if (!bad && o != lm.obs.end()) {
+      Vec3 a, b;
+      if (!backProject(L, T_W_C, o->second.s0, o->second.e0, &a, &b)) {
+        ++rejections_.depth;
+        bad = true;
+      } else {
+        // End-on: the line's direction close to the viewing ray of the observed midpoint.
+        const Vec3 mid = 0.5 * (a + b);
+        const Vec3 ray = (mid - T_W_C.p).normalized();
+        if (pluckerDirection(L).cross(ray).norm() < min_sin_view) {
+          ++rejections_.end_on;
+          bad = true;
+        } else if (lm.has_extent) {
+          // Drift: the new back-projected segment must touch the extent (within max_extent_gap_m).
+          const Vec3 u = pluckerDirection(L), P0 = pluckerClosestPointToOrigin(L);
+          const double ta = (lm.a - P0).dot(u), tb = (lm.b - P0).dot(u);
+          const double na = (a - P0).dot(u), nb = (b - P0).dot(u);
+          const double gap = std::max({0.0, std::min(na, nb) - std::max(ta, tb), std::min(ta, tb) - std::max(na, nb)});
+          if (gap > options_.max_extent_gap_m) {
+            ++rejections_.drifted;
+            bad = true;
+          }
+        }
+        if (!bad) {
+          extend(lm, a, b);
+          if ((lm.b - lm.a).norm() > options_.max_length_m) {
+            ++rejections_.depth;
+            bad = true;
+          }
+        }
+      }
+    }
+    if (bad) {
+      it = landmarks_.erase(it);
+      ++removed;
+    } else {
+      ++it;
+    }
+  }
+  return removed;
+}
+
+int LineLandmarks::countTriangulatedIn(FrameId frame) const {
+  int n = 0;
+  for (const auto& [id, lm] : landmarks_)
+    if (lm.triangulated && lm.obs.count(frame)) ++n;
+  return n;
+}
+
+int LineLandmarks::countObservedIn(FrameId frame) const {
+  int n = 0;
+  for (const auto& [id, lm] : landmarks_) n += lm.obs.count(frame) ? 1 : 0;
+  return n;
+}
+
+int LineLandmarks::countUsed() const {
+  int n = 0;
+  for (const auto& [id, lm] : landmarks_) n += lm.used ? 1 : 0;
+  return n;
+}
+
+std::vector<MapLine> LineLandmarks::mapLines() const {
+  std::map<std::int64_t, MapLine> all = map_;
+  for (const auto& [id, lm] : landmarks_) {
+    if (!lm.triangulated || !lm.has_extent) continue;
+    all[id] = MapLine{id, lm.a, lm.b, lm.observations};
+  }
+  std::vector<MapLine> out;
+  out.reserve(all.size());
+  for (const auto& [id, m] : all) out.push_back(m);
+  return out;
+}
+
+}  // namespace linnet

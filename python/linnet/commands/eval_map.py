@@ -1,0 +1,73 @@
+"""``linnet eval-map RUN_DIR DATASET``: the run's 3D line map against the simulator's true scene lines."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+
+class EvalMapInputError(click.ClickException):
+    """Missing or malformed run / dataset files: one line on stderr, exit code 2."""
+
+    exit_code = 2
+
+
+def _fmt(value, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
+def _print_table(report: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(highlight=False, markup=False)
+    table = Table(title=f"line map {report['map_lines']} vs {report['true_lines']}", title_justify="left")
+    table.add_column("figure", no_wrap=True)
+    table.add_column("value", justify="right", no_wrap=True)
+    table.add_row("map lines (total)", str(report["lines_total"]))
+    table.add_row(f"map lines evaluated (>= {report['min_observations']} observations)",
+                  str(report["lines_evaluated"]))
+    table.add_row("true lines associated", f"{report['true_lines_associated']} of {report['true_lines_total']}")
+    table.add_row("median angle [deg]", _fmt(report["median_angle_deg"], ".3f"))
+    table.add_row("median endpoint distance [m]", _fmt(report["median_endpoint_dist_m"], ".4f"))
+    table.add_row("90th percentile endpoint distance [m]", _fmt(report["p90_endpoint_dist_m"], ".4f"))
+    table.add_row(f"both endpoints within {report['within_m']:g} m", _fmt(report["frac_within"], ".3f"))
+    console.print(table)
+    a = report["alignment"]
+    console.print(f"alignment: SE3 of {a['trajectory']} onto {a['ground_truth']} from {a['pairs']} pose pairs "
+                  f"(t_max_diff {a['t_max_diff_s']:g} s), APE RMSE {_fmt(a['ape_rmse_m'], '.4f')} m")
+
+
+@click.command("eval-map")
+@click.argument("run_dir", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.argument("dataset", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--min-observations", type=click.IntRange(min=0), default=5, show_default=True,
+              help="Evaluate only map lines observed by at least this many frames.")
+@click.option("--within", "within_m", type=click.FloatRange(min=0.0), default=0.05, show_default=True,
+              help="Distance bound (metres) of the 'both endpoints within' fraction.")
+@click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the figures as JSON to this file.")
+def COMMAND(run_dir, dataset, min_observations, within_m, json_file):
+    """Score RUN_DIR/map_lines.csv (from `linnet run`) against DATASET/sim/lines.csv (from `linnet simulate`).
+
+    The map is brought into the ground-truth frame by the SE3 alignment of RUN_DIR/trajectory.tum onto the dataset's
+    ground truth (as for the APE). Each map line is associated with the true segment nearest to its endpoints; prints
+    the angle to it and the endpoint distances to its infinite line. Exit code 2 on missing or malformed files.
+    """
+    from linnet import evaluation as ev
+    from linnet import map_eval
+
+    try:
+        report = map_eval.evaluate_run_map(run_dir, dataset, min_observations=min_observations, within_m=within_m)
+    except ev.InputError as e:
+        raise EvalMapInputError(str(e)) from None
+    _print_table(report)
+    if report["lines_evaluated"] == 0:
+        click.echo(f"note: no map line has {min_observations} or more observations")
+    if json_file is not None:
+        try:
+            json_file.parent.mkdir(parents=True, exist_ok=True)
+            json_file.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        except OSError as e:
+            raise EvalMapInputError(f"{json_file}: cannot write JSON ({e.strerror})") from None
