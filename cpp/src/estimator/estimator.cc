@@ -57,7 +57,7 @@ EstimatorCore::EstimatorCore(const EstimatorOptions& options, const ImuNoise& no
 void EstimatorCore::observeLines(FrameId frame, const FrameObservations& obs) {
   if (!options_.lines.enabled || obs.lines.empty()) return;
   ScopedMs timer(&line_ms_);
-  lines_.observe(frame, obs.lines);
+  lines_.observe(frame, obs.t, obs.lines);
 }
 
 void EstimatorCore::clearLandmarks() {

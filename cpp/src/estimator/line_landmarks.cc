@@ -1,7 +1,10 @@
 // Line landmarks of the window (see line_landmarks.h).
 #include "linnet/estimator/line_landmarks.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 
 #include "linnet/estimator/factors/line_factor.h"
 
@@ -15,7 +18,7 @@ LineLandmarks::LineLandmarks(const LineOptions& options, double focal_length, co
                              std::optional<Pose> T_B_C1)
     : options_(options), focal_length_(focal_length), T_B_C0_(T_B_C0), T_B_C1_(std::move(T_B_C1)) {}
 
-void LineLandmarks::observe(FrameId frame, const std::vector<LineObservation>& lines) {
+void LineLandmarks::observe(FrameId frame, Timestamp t, const std::vector<LineObservation>& lines) {
   for (const LineObservation& l : lines) {
     LineLandmark& lm = landmarks_[l.id];
     if (lm.id < 0) lm.id = l.id;
@@ -26,6 +29,7 @@ void LineLandmarks::observe(FrameId frame, const std::vector<LineObservation>& l
     o.s1 = l.s1;
     o.e1 = l.e1;
     if (lm.obs.emplace(frame, o).second) ++lm.observations;
+    lm.t_last = std::max(lm.t_last, t);
   }
 }
 
@@ -81,6 +85,11 @@ bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const
     else first = p0;
   }
   if (best_sin < std::sin(options_.min_plane_angle_deg * kDegToRad)) return false;
+  lm.max_sin_angle = std::max(lm.max_sin_angle, best_sin);
+  if (first) {
+    lm.first_plane = *first;
+    lm.has_first_plane = true;
+  }
   const Vec6 L = normalisePlucker(best);
   // Every cam0 observation must back-project in front of its camera, within the depth range; the segment short
   // enough. The extent starts from these.
@@ -137,7 +146,7 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
       add(o.s0, o.e0, T_B_C0_);
       if (o.has_right && options_.right_residuals) add(o.s1, o.e1, *T_B_C1_);
     }
-    if (host_only < 0) lm.used = true;
+    if (host_only < 0) lm.used = lm.solved = true;
   }
   return out;
 }
@@ -149,6 +158,8 @@ void LineLandmarks::archive(const LineLandmark& lm) {
   m.a = lm.a;
   m.b = lm.b;
   m.observations = lm.observations;
+  m.t_last = lm.t_last;
+  m.angle_deg = std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad;
   map_[lm.id] = m;
 }
 
@@ -157,7 +168,7 @@ void LineLandmarks::removeFrame(FrameId frame) {
     LineLandmark& lm = it->second;
     lm.obs.erase(frame);
     if (lm.obs.empty()) {
-      if (lm.used) archive(lm);
+      if (lm.solved) archive(lm);
       it = landmarks_.erase(it);
     } else {
       ++it;
@@ -167,7 +178,7 @@ void LineLandmarks::removeFrame(FrameId frame) {
 
 void LineLandmarks::clear() {
   for (const auto& [id, lm] : landmarks_)
-    if (lm.used) archive(lm);
+    if (lm.solved) archive(lm);
   landmarks_.clear();
 }
 
@@ -232,6 +243,18 @@ int LineLandmarks::rejectOutliers(const Window& window) {
           }
         }
         if (!bad) {
+          // Triangulation quality so far: the newest cam0 plane against the first one, and the stereo pair.
+          const Eigen::Vector4d p_new = backProjectionPlane(T_W_C, o->second.s0, o->second.e0);
+          double sin_angle = 0.0;
+          if (lm.has_first_plane) {
+            intersectPlanes(lm.first_plane, p_new, &sin_angle);
+            lm.max_sin_angle = std::max(lm.max_sin_angle, sin_angle);
+          }
+          if (o->second.has_right) {
+            intersectPlanes(p_new, backProjectionPlane(newest.T_W_B() * *T_B_C1_, o->second.s1, o->second.e1),
+                            &sin_angle);
+            lm.max_sin_angle = std::max(lm.max_sin_angle, sin_angle);
+          }
           extend(lm, a, b);
           if ((lm.b - lm.a).norm() > options_.max_length_m) {
             ++rejections_.depth;
@@ -246,6 +269,14 @@ int LineLandmarks::rejectOutliers(const Window& window) {
     } else {
       ++it;
     }
+  }
+  if (std::getenv("LINNET_DEBUG_LINES")) {
+    static int tot[5] = {0, 0, 0, 0, 0};
+    tot[0] += rejections_.reprojection; tot[1] += rejections_.depth; tot[2] += rejections_.end_on;
+    tot[3] += rejections_.drifted; tot[4]++;
+    if (tot[4] % 200 == 0)
+      std::fprintf(stderr, "lines: %zu in window, map %zu; rejected reproj %d depth %d end-on %d drift %d\n",
+                   landmarks_.size(), map_.size(), tot[0], tot[1], tot[2], tot[3]);
   }
   return removed;
 }
@@ -273,7 +304,8 @@ std::vector<MapLine> LineLandmarks::mapLines() const {
   std::map<std::int64_t, MapLine> all = map_;
   for (const auto& [id, lm] : landmarks_) {
     if (!lm.triangulated || !lm.has_extent) continue;
-    all[id] = MapLine{id, lm.a, lm.b, lm.observations};
+    all[id] = MapLine{id, lm.a, lm.b, lm.observations, lm.t_last,
+                      std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad};
   }
   std::vector<MapLine> out;
   out.reserve(all.size());

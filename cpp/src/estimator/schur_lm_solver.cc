@@ -31,10 +31,17 @@ void addJtJ(double* dst, Eigen::Index ld, const double* Ja, const double* Jb) {
   D.noalias() += Eigen::Map<const RowMat<R, A>>(Ja).transpose() * Eigen::Map<const RowMat<R, B>>(Jb);
 }
 
-// The fixed-size dispatch for 2-row residuals; false if the sizes have no kernel.
+// The fixed-size dispatch for 2-row residuals (points: pose 6 / inverse depth 1; lines: pose 6 / line 4); false if
+// the sizes have no kernel.
 bool addJtJFixed(int rows, int ta, int tb, double* dst, Eigen::Index ld, const double* Ja, const double* Jb) {
   if (rows != 2) return false;
-  if (ta == 6 && tb == 6) {
+  if (ta == 4 && tb == 4) {
+    addJtJ<2, 4, 4>(dst, ld, Ja, Jb);
+  } else if (ta == 4 && tb == 6) {
+    addJtJ<2, 4, 6>(dst, ld, Ja, Jb);
+  } else if (ta == 4 && tb == 1) {
+    addJtJ<2, 4, 1>(dst, ld, Ja, Jb);
+  } else if (ta == 6 && tb == 6) {
     addJtJ<2, 6, 6>(dst, ld, Ja, Jb);
   } else if (ta == 1 && tb == 6) {
     addJtJ<2, 1, 6>(dst, ld, Ja, Jb);
@@ -201,6 +208,9 @@ double SchurLmSolver::evaluate(bool linearise) {
       if (b.manifold != nullptr && rows == 2 && b.ambient == 7 && b.tangent == 6)
         Eigen::Map<RowMat<2, 6>>(Jt.data()).noalias() =
             Eigen::Map<const RowMat<2, 7>>(Ja.data()) * Eigen::Map<const RowMat<7, 6>>(plus_jacobians_[bi].data());
+      else if (b.manifold != nullptr && rows == 2 && b.ambient == 6 && b.tangent == 4)
+        Eigen::Map<RowMat<2, 4>>(Jt.data()).noalias() =
+            Eigen::Map<const RowMat<2, 6>>(Ja.data()) * Eigen::Map<const RowMat<6, 4>>(plus_jacobians_[bi].data());
       else if (b.manifold != nullptr)
         Jt.noalias() = Ja * plus_jacobians_[bi];
       else
@@ -304,6 +314,40 @@ bool SchurLmSolver::computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::Vect
             S.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -=
                 (inv * hi.transpose()) * lm.H_ek[j].row(0);
           }
+        }
+      }
+      continue;
+    }
+    if (lm.size == 4) {
+      // Lines (orthonormal 4-DoF): fixed-size elimination, 4 x 6 couplings to the poses.
+      Eigen::Matrix4d A = lm.H_ee;
+      A.diagonal() += mu * D_e.segment<4>(lm.offset);
+      const Eigen::LLT<Eigen::Matrix4d> llt4(A);
+      if (llt4.info() != Eigen::Success) return false;
+      const Eigen::Matrix4d inv = llt4.solve(Eigen::Matrix4d::Identity());
+      inv_general[l] = inv;
+      const Eigen::Vector4d inv_g = inv * g_e_.segment<4>(lm.offset);
+      for (std::size_t i = 0; i < lm.kept.size(); ++i) {
+        const Block& bi = blocks_[static_cast<std::size_t>(lm.kept[i])];
+        if (bi.tangent != 6) {
+          rhs.segment(bi.offset, bi.tangent).noalias() += lm.H_ek[i].transpose() * inv_g;
+          const Eigen::MatrixXd HtInv = lm.H_ek[i].transpose() * inv;
+          for (std::size_t j = 0; j < lm.kept.size(); ++j) {
+            const Block& bj = blocks_[static_cast<std::size_t>(lm.kept[j])];
+            S.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -= HtInv * lm.H_ek[j];
+          }
+          continue;
+        }
+        const Eigen::Map<const Eigen::Matrix<double, 4, 6>> Hi(lm.H_ek[i].data());
+        rhs.segment<6>(bi.offset).noalias() += Hi.transpose() * inv_g;
+        const Eigen::Matrix<double, 6, 4> HtInv = Hi.transpose() * inv;
+        for (std::size_t j = 0; j < lm.kept.size(); ++j) {
+          const Block& bj = blocks_[static_cast<std::size_t>(lm.kept[j])];
+          if (bj.tangent == 6)
+            S.block<6, 6>(bi.offset, bj.offset).noalias() -=
+                HtInv * Eigen::Map<const Eigen::Matrix<double, 4, 6>>(lm.H_ek[j].data());
+          else
+            S.block(bi.offset, bj.offset, 6, bj.tangent).noalias() -= HtInv * lm.H_ek[j];
         }
       }
       continue;

@@ -12,6 +12,8 @@ struct MapLine {
   std::int64_t id = -1;
   Vec3 a = Vec3::Zero(), b = Vec3::Zero();
   int observations = 0;
+  Timestamp t_last = 0;        // time of the last frame that observed it, ns (0: unknown)
+  double angle_deg = 0.0;      // widest angle between two of its back-projection planes (triangulation quality), deg
 };
 
 }  // namespace linnet

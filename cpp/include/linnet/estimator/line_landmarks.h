@@ -36,7 +36,12 @@ struct LineLandmark {
   std::array<double, 6> plucker{};      // [n_W, v_W] (a parameter block, LineManifold)
   bool triangulated = false;
   bool used = false;                    // took part in the last solve
+  bool solved = false;                  // took part in at least one solve (kept in the map when it leaves)
   int observations = 0;                 // frames that observed it over its life (the window's and earlier ones)
+  Timestamp t_last = 0;                 // time of the newest frame that observed it, ns
+  bool has_first_plane = false;
+  Eigen::Vector4d first_plane = Eigen::Vector4d::Zero();  // back-projection plane of its first cam0 observation, W
+  double max_sin_angle = 0.0;           // widest plane angle seen so far (stereo or first vs later frame), sine
   bool has_extent = false;
   Vec3 a = Vec3::Zero(), b = Vec3::Zero();  // finite segment: extreme back-projected endpoints on the line, W
 
@@ -56,8 +61,8 @@ class LineLandmarks {
  public:
   LineLandmarks(const LineOptions& options, double focal_length, const Pose& T_B_C0, std::optional<Pose> T_B_C1);
 
-  /// Records the frame's line observations (ids may be new or known).
-  void observe(FrameId frame, const std::vector<LineObservation>& lines);
+  /// Records the frame's (time t) line observations (ids may be new or known).
+  void observe(FrameId frame, Timestamp t, const std::vector<LineObservation>& lines);
   /// Triangulates the lines that are not yet: the candidate (stereo pair of a frame, or cam0 in two frames) with the
   /// widest angle between the back-projection planes, if above options.min_plane_angle_deg, and if every observation
   /// back-projects in the depth range. Returns the number of newly triangulated lines.

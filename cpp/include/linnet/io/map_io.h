@@ -40,10 +40,11 @@ void writeObj(const std::string& path, const MapGeometry& map, const Rgb& defaul
 /// By extension: ".obj" -> OBJ, else PLY.
 void writeMap(const std::string& path, const MapGeometry& map);
 
-/// Writes the line map as csv: a header `#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations`, then one line
-/// per map line (W, metres). InputError if the file cannot be written.
+/// Writes the line map as csv: a header `#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations,t_last [ns],
+/// triangulation_angle [deg]`, then one line per map line (W, metres). InputError if the file cannot be written.
 void writeMapLinesCsv(const std::string& path, const std::vector<MapLine>& lines);
-/// Reads a file written by writeMapLinesCsv. InputError "<file>:<line>: ..." on bad content.
+/// Reads a file written by writeMapLinesCsv (8 columns without the last two are accepted). InputError
+/// "<file>:<line>: ..." on bad content.
 std::vector<MapLine> readMapLinesCsv(const std::string& path);
 
 /// Reads an ascii PLY with vertex x y z [red green blue] and optional edge elements (as written by writePly):

@@ -1,0 +1,277 @@
+// LineLandmarks on a small synthetic window with a EuRoC-like stereo rig: triangulation from the stereo pair and
+// from two frames, the degenerate and out-of-range cases it must reject, the residuals it hands to the solver,
+// the map of lines that left the window, and the outlier / drift checks after a solve.
+#include "linnet/estimator/line_landmarks.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "linnet/estimator/factors/line_factor.h"
+
+namespace linnet {
+namespace {
+
+constexpr double kFocal = 460.0;
+constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr Timestamp kT0 = 1'403'715'273'000'000'000;
+constexpr Timestamp kDt = 100'000'000;
+
+// cam0 close to the body frame, cam1 0.11 m to its right (along cam0's x), slightly rotated.
+const Pose kT_B_C0(expSO3(Vec3(0.01, -0.02, 0.015)), Vec3(-0.02, -0.06, 0.01));
+const Pose kT_B_C1 = kT_B_C0 * Pose(expSO3(Vec3(0.002, -0.001, 0.0)), Vec3(0.11, 0.0, 0.0));
+
+// A roughly vertical segment about 3 m ahead of the first frame, and three body poses moving right.
+const Vec3 kA(-0.3, -0.8, 3.0), kB(0.2, 0.9, 3.4);
+Vec3 along(double s) { return kA + s * (kB - kA); }
+std::vector<Pose> bodyPoses() {
+  return {Pose(), Pose(expSO3(Vec3(0.0, 0.02, 0.0)), Vec3(0.25, 0.02, 0.05)),
+          Pose(expSO3(Vec3(0.01, 0.04, 0.0)), Vec3(0.5, -0.01, 0.1))};
+}
+
+Vec2 project(const Pose& T_W_C, const Vec3& p_W) {
+  const Vec3 p = T_W_C.inverse() * p_W;
+  return p.head<2>() / p.z();
+}
+
+/// The segment a-b (W) observed from body pose T_W_B, exact normalised endpoints in cam0 (and cam1).
+LineObservation observation(std::int64_t id, const Pose& T_W_B, const Vec3& a, const Vec3& b, bool right) {
+  LineObservation o;
+  o.id = id;
+  o.s0 = project(T_W_B * kT_B_C0, a);
+  o.e0 = project(T_W_B * kT_B_C0, b);
+  o.has_right = right;
+  if (right) {
+    o.s1 = project(T_W_B * kT_B_C1, a);
+    o.e1 = project(T_W_B * kT_B_C1, b);
+  }
+  return o;
+}
+
+Window makeWindow(int frames) {
+  Window w;
+  const std::vector<Pose> poses = bodyPoses();
+  for (int i = 0; i < frames; ++i) w.push(kT0 + i * kDt).setPose(poses[static_cast<std::size_t>(i)]);
+  return w;
+}
+
+double angleDeg(const Vec6& L, const Vec3& dir) {
+  return std::asin(std::min(1.0, pluckerDirection(L).cross(dir.normalized()).norm())) * kRadToDeg;
+}
+
+/// Distance of x to the segment [a, b].
+double segmentDistance(const Vec3& a, const Vec3& b, const Vec3& x) {
+  const double t = std::clamp((x - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+  return (a + t * (b - a) - x).norm();
+}
+
+void expectRecovered(const LineLandmark& lm) {
+  ASSERT_TRUE(lm.triangulated);
+  EXPECT_LT(angleDeg(lm.L(), kB - kA), 0.01);
+  EXPECT_LT(pluckerPointDistance(lm.L(), kA), 1e-3);
+  EXPECT_LT(pluckerPointDistance(lm.L(), kB), 1e-3);
+  EXPECT_NEAR(lm.L().norm(), 1.0, 1e-12);
+  ASSERT_TRUE(lm.has_extent);
+  EXPECT_LT(segmentDistance(lm.a, lm.b, kA) + segmentDistance(lm.a, lm.b, kB), 1e-6);
+  EXPECT_NEAR((lm.b - lm.a).norm(), (kB - kA).norm(), 1e-6);
+}
+
+TEST(LineLandmarks, StereoTriangulationInOneFrame) {
+  const Window w = makeWindow(1);
+  LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+  lines.observe(0, kT0, {observation(7, w[0].T_W_B(), kA, kB, true)});
+  EXPECT_EQ(lines.triangulate(w), 1);
+  const LineLandmark& lm = lines.all().at(7);
+  expectRecovered(lm);
+  EXPECT_GT(lm.max_sin_angle, std::sin(1.0 / kRadToDeg));
+  EXPECT_EQ(lines.countTriangulatedIn(0), 1);
+  EXPECT_EQ(lines.triangulate(w), 0);  // already triangulated
+
+  // Without the right image, one frame has no candidate.
+  LineLandmarks mono(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+  mono.observe(0, kT0, {observation(7, w[0].T_W_B(), kA, kB, false)});
+  EXPECT_EQ(mono.triangulate(w), 0);
+  EXPECT_FALSE(mono.all().at(7).triangulated);
+}
+
+TEST(LineLandmarks, TwoFrameTriangulationWithCam0Only) {
+  const Window w = makeWindow(2);
+  LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, std::nullopt);  // a monocular rig
+  // Each frame sees a different part of the segment; the extent is their union.
+  lines.observe(0, kT0, {observation(3, w[0].T_W_B(), kA, along(0.6), true)});  // has_right ignored: no cam1
+  lines.observe(1, kT0 + kDt, {observation(3, w[1].T_W_B(), along(0.4), kB, false)});
+  EXPECT_FALSE(lines.all().at(3).obs.at(0).has_right);
+  EXPECT_EQ(lines.triangulate(w), 1);
+  expectRecovered(lines.all().at(3));
+}
+
+TEST(LineLandmarks, RejectsDegenerateAndOutOfRangeLines) {
+  const Window w = makeWindow(3);
+  const Pose T_W_C0 = w[0].T_W_B() * kT_B_C0;
+  {
+    // Parallel to the stereo baseline, one frame: both back-projection planes are the same plane.
+    const Vec3 a = T_W_C0 * Vec3(-0.5, 0.3, 3.0), b = a + T_W_C0.q * Vec3(1.0, 0.0, 0.0);
+    LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+    lines.observe(0, kT0, {observation(1, w[0].T_W_B(), a, b, true)});
+    EXPECT_EQ(lines.triangulate(w), 0);
+    EXPECT_FALSE(lines.all().at(1).triangulated);
+  }
+  {
+    // Parallel to the motion of cam0 between two frames, no right image.
+    const Vec3 c1 = (w[1].T_W_B() * kT_B_C0).p;
+    const Vec3 a = T_W_C0 * Vec3(0.4, -0.3, 3.0), b = a + 1.5 * (c1 - T_W_C0.p).normalized();
+    LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+    lines.observe(0, kT0, {observation(2, w[0].T_W_B(), a, b, false)});
+    lines.observe(1, kT0 + kDt, {observation(2, w[1].T_W_B(), a, b, false)});
+    EXPECT_EQ(lines.triangulate(w), 0);
+    EXPECT_FALSE(lines.all().at(2).triangulated);
+  }
+  {
+    // Behind the camera: the stereo planes intersect at a wide angle, but the depths are negative.
+    const Vec3 a = T_W_C0 * Vec3(-0.3, -0.8, -3.0), b = T_W_C0 * Vec3(0.2, 0.9, -3.4);
+    const LineObservation o = observation(3, w[0].T_W_B(), a, b, true);
+    double sin_angle = 0.0;
+    intersectPlanes(backProjectionPlane(T_W_C0, o.s0, o.e0),
+                    backProjectionPlane(w[0].T_W_B() * kT_B_C1, o.s1, o.e1), &sin_angle);
+    EXPECT_GT(sin_angle, std::sin(1.0 / kRadToDeg));
+    LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+    lines.observe(0, kT0, {o});
+    EXPECT_EQ(lines.triangulate(w), 0);
+  }
+  {
+    // 12 m away, seen from frames 0 and 2 (0.5 m apart): fine with max_depth_m = 30, rejected with 10.
+    const Vec3 a = T_W_C0 * Vec3(-0.5, -1.0, 12.0), b = T_W_C0 * Vec3(0.5, 2.0, 12.5);
+    for (const double max_depth : {30.0, 10.0}) {
+      LineOptions options;
+      options.max_depth_m = max_depth;
+      LineLandmarks lines(options, kFocal, kT_B_C0, kT_B_C1);
+      lines.observe(0, kT0, {observation(4, w[0].T_W_B(), a, b, false)});
+      lines.observe(2, kT0 + 2 * kDt, {observation(4, w[2].T_W_B(), a, b, false)});
+      EXPECT_EQ(lines.triangulate(w), max_depth > 20.0 ? 1 : 0) << "max_depth_m " << max_depth;
+    }
+  }
+}
+
+/// Frames 0-2 observe line 7 in both images (different parts of the segment); frame 2 also sees line 8 (stereo).
+LineLandmarks observedLines(const Window& w, const LineOptions& options = {}) {
+  LineLandmarks lines(options, kFocal, kT_B_C0, kT_B_C1);
+  lines.observe(0, w[0].t, {observation(7, w[0].T_W_B(), kA, along(0.6), true)});
+  lines.observe(1, w[1].t, {observation(7, w[1].T_W_B(), along(0.3), along(0.8), true)});
+  lines.observe(2, w[2].t, {observation(7, w[2].T_W_B(), along(0.5), kB, true),
+                            observation(8, w[2].T_W_B(), Vec3(1.0, -0.5, 4.0), Vec3(1.2, 0.6, 4.2), true)});
+  return lines;
+}
+
+TEST(LineLandmarks, ResidualsPerFrameAndCameraWithZeroCostAtTheTruth) {
+  Window w = makeWindow(3);
+  LineLandmarks lines = observedLines(w);
+  EXPECT_EQ(lines.triangulate(w), 2);
+  std::vector<ResidualSpec> res = lines.residuals(w);
+  ASSERT_EQ(res.size(), 6u);  // line 8 is seen in one frame only: not usable yet
+  const double* block = lines.all().at(7).plucker.data();
+  EXPECT_TRUE(lines.all().at(7).used && lines.all().at(7).solved);
+  EXPECT_FALSE(lines.all().at(8).used);
+  EXPECT_EQ(lines.countUsed(), 1);
+  // Set the block to the true line: every residual vanishes.
+  Eigen::Map<Vec6> L(res[0].blocks[1]);
+  L = normalisePlucker(pluckerFromPoints(kA, kB));
+  for (std::size_t k = 0; k < res.size(); ++k) {
+    const ResidualSpec& r = res[k];
+    const FrameId frame = static_cast<FrameId>(k / 2);  // cam0, then cam1, per frame
+    EXPECT_EQ(r.keys, (std::vector<std::int64_t>{frameBlockKey(frame, BlockKind::kPose), lineBlockKey(7)}));
+    EXPECT_EQ(r.blocks, (std::vector<double*>{w.find(frame)->pose.data(), const_cast<double*>(block)}));
+    EXPECT_TRUE(r.line);
+    EXPECT_TRUE(r.robust);
+    ASSERT_EQ(r.cost->num_residuals(), 2);
+    Vec2 e;
+    ASSERT_TRUE(r.cost->Evaluate(r.blocks.data(), e.data(), nullptr));
+    EXPECT_LT(e.norm(), 1e-8) << k;
+  }
+  // Moved off the truth: a frame weight of 4 doubles that frame's residuals.
+  L = normalisePlucker(transformPlucker(Pose(Quat::Identity(), Vec3(0.02, 0.0, 0.0)), L));
+  const std::vector<ResidualSpec> weighted = lines.residuals(w, -1, {{1, 4.0}});
+  ASSERT_EQ(weighted.size(), 6u);
+  for (std::size_t k = 0; k < 6; ++k) {
+    Vec2 e0, e1;
+    ASSERT_TRUE(res[k].cost->Evaluate(res[k].blocks.data(), e0.data(), nullptr));
+    ASSERT_TRUE(weighted[k].cost->Evaluate(weighted[k].blocks.data(), e1.data(), nullptr));
+    EXPECT_GT(e0.norm(), 0.5);
+    EXPECT_LT((e1 - (k / 2 == 1 ? 2.0 : 1.0) * e0).norm(), 1e-9 * e0.norm()) << k;
+  }
+  // Marginalisation selection by host frame (the oldest observation), without touching `used`.
+  EXPECT_EQ(lines.residuals(w, 0).size(), 6u);
+  EXPECT_EQ(lines.residuals(w, 1).size(), 0u);
+  EXPECT_EQ(lines.countUsed(), 1);
+  // cam0 only when the right residuals are off.
+  LineOptions no_right;
+  no_right.right_residuals = false;
+  LineLandmarks left = observedLines(w, no_right);
+  left.triangulate(w);
+  EXPECT_EQ(left.residuals(w).size(), 3u);
+}
+
+TEST(LineLandmarks, SolvedLinesStayInTheMapAfterLeavingTheWindow) {
+  Window w = makeWindow(3);
+  LineLandmarks lines = observedLines(w);
+  ASSERT_EQ(lines.triangulate(w), 2);
+  EXPECT_EQ(lines.mapLines().size(), 2u);  // the window's triangulated lines with an extent
+  lines.residuals(w);                      // line 7 takes part in a solve, line 8 does not
+  lines.removeFrame(0);
+  lines.removeFrame(1);
+  EXPECT_EQ(lines.all().count(7), 1u);
+  lines.removeFrame(2);
+  EXPECT_TRUE(lines.all().empty());
+  const std::vector<MapLine> map = lines.mapLines();
+  ASSERT_EQ(map.size(), 1u);
+  const MapLine& m = map[0];
+  EXPECT_EQ(m.id, 7);
+  EXPECT_EQ(m.observations, 3);
+  EXPECT_EQ(m.t_last, w[2].t);
+  EXPECT_GT(m.angle_deg, 1.0);
+  // The extent covers every observed part, i.e. the whole segment, and nothing more.
+  EXPECT_LT(segmentDistance(m.a, m.b, kA) + segmentDistance(m.a, m.b, kB), 1e-6);
+  EXPECT_NEAR((m.b - m.a).norm(), (kB - kA).norm(), 1e-6);
+}
+
+TEST(LineLandmarks, RejectOutliersRemovesAShiftedLineAndTracksTheExtent) {
+  Window w = makeWindow(3);
+  {
+    LineLandmarks lines = observedLines(w);
+    lines.triangulate(w);
+    const std::vector<ResidualSpec> res = lines.residuals(w);
+    EXPECT_EQ(lines.rejectOutliers(w), 0);  // the line fits
+    ASSERT_EQ(lines.all().count(7), 1u);
+    // Shift the Plücker block 0.5 m sideways (as a diverged solve could): mean error ~75 px.
+    Eigen::Map<Vec6> L(res[0].blocks[1]);
+    L = normalisePlucker(transformPlucker(Pose(Quat::Identity(), Vec3(0.5, 0.0, 0.0)), Vec6(L)));
+    EXPECT_EQ(lines.rejectOutliers(w), 1);
+    EXPECT_EQ(lines.lastRejections().reprojection, 1);
+    EXPECT_EQ(lines.all().count(7), 0u);
+    EXPECT_EQ(lines.all().count(8), 1u);  // not used in the solve: not checked
+  }
+  for (const double far : {1.3, 2.5}) {
+    // Triangulated from frames 0-1; the newest frame then sees a part of the same line beyond the extent [0, 1]:
+    // touching it (0.9..1.3) extends it, 1.4 segment lengths away (2.4..2.5) is a drifted track.
+    LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+    lines.observe(0, w[0].t, {observation(7, w[0].T_W_B(), kA, along(0.6), true)});
+    lines.observe(1, w[1].t, {observation(7, w[1].T_W_B(), along(0.3), kB, true)});
+    ASSERT_EQ(lines.triangulate(w), 1);
+    const double start = far < 2.0 ? 0.9 : 2.4;
+    lines.observe(2, w[2].t, {observation(7, w[2].T_W_B(), along(start), along(far), true)});
+    lines.residuals(w);
+    if (far < 2.0) {
+      EXPECT_EQ(lines.rejectOutliers(w), 0);
+      const LineLandmark& lm = lines.all().at(7);
+      EXPECT_LT(segmentDistance(lm.a, lm.b, kA) + segmentDistance(lm.a, lm.b, along(far)), 1e-6);
+      EXPECT_NEAR((lm.b - lm.a).norm(), far * (kB - kA).norm(), 1e-6);
+    } else {
+      EXPECT_EQ(lines.rejectOutliers(w), 1);
+      EXPECT_EQ(lines.lastRejections().drifted, 1);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace linnet
