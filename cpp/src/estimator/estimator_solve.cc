@@ -213,7 +213,7 @@ void EstimatorCore::marginaliseOldest() {
     }
     m.addResidual(r.cost, r.robust ? &huber_ : nullptr, r.keys);
   }
-  {
+  if (options_.lines.marginalise) {
     ScopedMs timer(&line_ms_);
     for (const ResidualSpec& r : lines_.residuals(window_, old_id, frameWeights(true))) {
       regFrameKey(r.keys[0]);

@@ -3,8 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 
 #include "linnet/estimator/factors/line_factor.h"
 
@@ -269,14 +267,6 @@ int LineLandmarks::rejectOutliers(const Window& window) {
     } else {
       ++it;
     }
-  }
-  if (std::getenv("LINNET_DEBUG_LINES")) {
-    static int tot[5] = {0, 0, 0, 0, 0};
-    tot[0] += rejections_.reprojection; tot[1] += rejections_.depth; tot[2] += rejections_.end_on;
-    tot[3] += rejections_.drifted; tot[4]++;
-    if (tot[4] % 200 == 0)
-      std::fprintf(stderr, "lines: %zu in window, map %zu; rejected reproj %d depth %d end-on %d drift %d\n",
-                   landmarks_.size(), map_.size(), tot[0], tot[1], tot[2], tot[3]);
   }
   return removed;
 }

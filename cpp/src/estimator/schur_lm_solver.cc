@@ -321,7 +321,7 @@ bool SchurLmSolver::computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::Vect
     if (lm.size == 4) {
       // Lines (orthonormal 4-DoF): fixed-size elimination, 4 x 6 couplings to the poses.
       Eigen::Matrix4d A = lm.H_ee;
-      A.diagonal() += mu * D_e.segment<4>(lm.offset);
+      A.diagonal() += mu * D_e.segment<4>(lm.offset) + Eigen::Vector4d::Constant(options_.landmark_damping);
       const Eigen::LLT<Eigen::Matrix4d> llt4(A);
       if (llt4.info() != Eigen::Success) return false;
       const Eigen::Matrix4d inv = llt4.solve(Eigen::Matrix4d::Identity());
@@ -353,7 +353,8 @@ bool SchurLmSolver::computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::Vect
       continue;
     }
     Eigen::MatrixXd A = lm.H_ee;
-    A.diagonal() += mu * D_e.segment(lm.offset, lm.size);
+    A.diagonal() += mu * D_e.segment(lm.offset, lm.size) +
+                    Eigen::VectorXd::Constant(lm.size, options_.landmark_damping);
     Eigen::LLT<Eigen::MatrixXd> llt(A);
     if (llt.info() != Eigen::Success) return false;
     inv_general[l] = llt.solve(Eigen::MatrixXd::Identity(lm.size, lm.size));
@@ -387,8 +388,10 @@ bool SchurLmSolver::computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::Vect
       dx_elim->segment(lm.offset, lm.size) = inv_general[l] * b;
   }
   // Decrease of the undamped quadratic model: with (H + mu D) dx = -g it is 0.5 (mu dx'D dx - g'dx).
-  const double dec = mu * dx_kept->dot(D.cwiseProduct(*dx_kept)) - g_.dot(*dx_kept) +
-                     mu * dx_elim->dot(D_e.cwiseProduct(*dx_elim)) - g_e_.dot(*dx_elim);
+  double dec = mu * dx_kept->dot(D.cwiseProduct(*dx_kept)) - g_.dot(*dx_kept) +
+               mu * dx_elim->dot(D_e.cwiseProduct(*dx_elim)) - g_e_.dot(*dx_elim);
+  for (const Landmark& lm : landmarks_)
+    if (lm.size > 1) dec += options_.landmark_damping * dx_elim->segment(lm.offset, lm.size).squaredNorm();
   *model_decrease = 0.5 * dec;
   return dx_elim->allFinite();
 }

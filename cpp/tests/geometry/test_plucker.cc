@@ -212,10 +212,10 @@ TEST(Plucker, LineEndpointDistances) {
   const Vec2 d = lineEndpointDistances(Vec3(3.0, 4.0, -5.0), Vec2(1.0, 1.0), Vec2(-1.0, 2.0));
   EXPECT_NEAR(d.x(), 0.4, 1e-15);
   EXPECT_NEAR(d.y(), 0.0, 1e-15);
-  // Signed, and invariant to the scale of l (up to its sign).
+  // Signed, and invariant to the scale of l (up to its sign): (-6 - 8 + 10) / 10, (0 + 0 + 10) / 10.
   const Vec2 d2 = lineEndpointDistances(Vec3(-6.0, -8.0, 10.0), Vec2(1.0, 1.0), Vec2(0.0, 0.0));
   EXPECT_NEAR(d2.x(), -0.4, 1e-15);
-  EXPECT_NEAR(d2.y(), -2.0, 1e-15);
+  EXPECT_NEAR(d2.y(), 1.0, 1e-15);
   // The image line of a 3D line (n_C) against the projections: an endpoint 0.01 off the line, perpendicular.
   const Vec3 A(-0.5, 0.2, 3.0), B(0.7, -0.1, 4.0);
   const Vec3 l = pluckerFromPoints(A, B).head<3>();

@@ -144,6 +144,9 @@ struct LineOptions {
                                       // line's extent (drifted off / mismatched track): line removed, m
   int min_observations = 2;           // window frames a line must be seen in to enter a solve (>= 2)
   bool right_residuals = true;        // cam1 residuals where the line is matched in the right image
+  bool marginalise = true;            // when the oldest keyframe leaves, its lines' residuals go into the prior (the
+                                      // thesis' strategy, lines dropped from it as landmarks); false: its line
+                                      // observations are only dropped
   bool weighting = false;             // patent point / line weighting per frame (see below); off: it did not help
   int weighting_min_lines = 30;       // more lines than this in a frame: the fixed weights below
   double point_weight = 0.2;          // patent: w_p, w_l (line-dominant in low texture); otherwise the weights
@@ -165,6 +168,7 @@ struct LineOptions {
       1000.0);
     v("min_observations", min_observations, "frames a line must be seen in to enter a solve", 2, 1000);
     v("right_residuals", right_residuals, "cam1 line residuals where matched");
+    v("marginalise", marginalise, "lines observed by the leaving keyframe go into the prior");
     v("weighting", weighting, "patent point / line weighting per frame");
     v("weighting_min_lines", weighting_min_lines, "lines in a frame above which the fixed weights apply", 0, 100000);
     v("point_weight", point_weight, "point weight w_p with many lines", 0.0, 1.0);

@@ -31,6 +31,11 @@ struct SchurLmOptions {
   double min_relative_decrease = 1e-3;    // a step is accepted when the cost falls by at least this share of the
                                           // decrease the linear model predicts
   double function_tolerance = 1e-6;       // stop when the relative cost change of a step is below this
+  double landmark_damping = 1e3;          // absolute Levenberg term added to the diagonal of multi-dimensional eliminated
+                                          // blocks (lines, 4-DoF), whitened cost per tangent unit^2: bounds the step of a
+                                          // line along a nearly unobservable direction (with the near Gauss-Newton start
+                                          // such a step diverged on a textured replay); about 1e-3 of a well-observed
+                                          // line's information
   double min_diagonal = 1e-6;             // clamp of diag(J^T J) in the damping
   double max_diagonal = 1e32;
 };
