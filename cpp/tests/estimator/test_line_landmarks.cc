@@ -99,9 +99,10 @@ TEST(LineLandmarks, StereoTriangulationInOneFrame) {
 TEST(LineLandmarks, TwoFrameTriangulationWithCam0Only) {
   const Window w = makeWindow(2);
   LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, std::nullopt);  // a monocular rig
-  // Each frame sees a different part of the segment; the extent is their union.
+  // Each frame sees a different part of the segment (the second with its endpoints swapped); the extent is their
+  // union.
   lines.observe(0, kT0, {observation(3, w[0].T_W_B(), kA, along(0.6), true)});  // has_right ignored: no cam1
-  lines.observe(1, kT0 + kDt, {observation(3, w[1].T_W_B(), along(0.4), kB, false)});
+  lines.observe(1, kT0 + kDt, {observation(3, w[1].T_W_B(), kB, along(0.4), false)});
   EXPECT_FALSE(lines.all().at(3).obs.at(0).has_right);
   EXPECT_EQ(lines.triangulate(w), 1);
   expectRecovered(lines.all().at(3));
@@ -221,6 +222,8 @@ TEST(LineLandmarks, SolvedLinesStayInTheMapAfterLeavingTheWindow) {
   lines.removeFrame(0);
   lines.removeFrame(1);
   EXPECT_EQ(lines.all().count(7), 1u);
+  EXPECT_TRUE(lines.residuals(w).empty());  // one observation left: not in the last solve any more
+  EXPECT_FALSE(lines.all().at(7).used);
   lines.removeFrame(2);
   EXPECT_TRUE(lines.all().empty());
   const std::vector<MapLine> map = lines.mapLines();
@@ -233,6 +236,14 @@ TEST(LineLandmarks, SolvedLinesStayInTheMapAfterLeavingTheWindow) {
   // The extent covers every observed part, i.e. the whole segment, and nothing more.
   EXPECT_LT(segmentDistance(m.a, m.b, kA) + segmentDistance(m.a, m.b, kB), 1e-6);
   EXPECT_NEAR((m.b - m.a).norm(), (kB - kA).norm(), 1e-6);
+  // clear() (a new window) keeps the solved lines too.
+  LineLandmarks again = observedLines(w);
+  again.triangulate(w);
+  again.residuals(w);
+  again.clear();
+  EXPECT_TRUE(again.all().empty());
+  ASSERT_EQ(again.mapLines().size(), 1u);
+  EXPECT_EQ(again.mapLines()[0].id, 7);
 }
 
 TEST(LineLandmarks, RejectOutliersRemovesAShiftedLineAndTracksTheExtent) {

@@ -84,7 +84,8 @@ struct Scene {
     };
     std::vector<Pose> truth;
     for (int i = 0; i < 3; ++i) {
-      truth.emplace_back(expSO3(Vec3(0.01 * U(rng), 0.05 * i, 0.01 * U(rng))), Vec3(0.3 * i, 0.05 * U(rng), 0.05 * i));
+      truth.emplace_back(expSO3(Vec3(0.01 * U(rng), 0.05 * i, 0.01 * U(rng))),
+                         Vec3(0.3 * i, 0.05 * U(rng), 0.05 * i));
       double b[7];
       setPose(Pose(truth.back().q * expSO3(0.005 * Vec3(U(rng), U(rng), U(rng))),
                    truth.back().p + 0.01 * Vec3(U(rng), U(rng), U(rng))),
@@ -124,8 +125,8 @@ struct Scene {
                            {poseKey(host), poseKey(j), pointBlockKey(id)}});
       }
     }
-    terms.push_back({std::make_shared<ceres::AutoDiffCostFunction<PosePrior, 6, 7>>(new PosePrior(truth[0], 100.0)),
-                     {poseKey(0)}});
+    using PriorCost = ceres::AutoDiffCostFunction<PosePrior, 6, 7>;
+    terms.push_back({std::make_shared<PriorCost>(new PosePrior(truth[0], 100.0)), {poseKey(0)}});
   }
 
   bool dropped(BlockKey k) const { return std::find(drop.begin(), drop.end(), k) != drop.end(); }
@@ -165,7 +166,8 @@ struct Scene {
 
   std::shared_ptr<const MarginalizationPrior> marginalise(MarginalisationStats* stats) const {
     Marginaliser m;
-    for (BlockKey k : order) m.addParameterBlock(k, x.at(k).data(), static_cast<int>(x.at(k).size()), manifold.at(k));
+    for (BlockKey k : order)
+      m.addParameterBlock(k, x.at(k).data(), static_cast<int>(x.at(k).size()), manifold.at(k));
     for (const Term& t : terms) m.addResidual(t.cost, nullptr, t.keys);
     auto prior = m.marginalise(drop);
     *stats = m.lastStats();
@@ -176,16 +178,18 @@ struct Scene {
   void solve(const std::vector<Term>& ts) {
     ceres::Problem::Options po;
     po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;  // the terms own them
     ceres::Problem problem(po);
     for (const Term& t : ts) {
       std::vector<double*> blocks;
       for (BlockKey k : t.keys) {
         double* data = x.at(k).data();
         if (!problem.HasParameterBlock(data))
-          problem.AddParameterBlock(data, static_cast<int>(x.at(k).size()), const_cast<ceres::Manifold*>(manifold.at(k)));
+          problem.AddParameterBlock(data, static_cast<int>(x.at(k).size()),
+                                    const_cast<ceres::Manifold*>(manifold.at(k)));
         blocks.push_back(data);
       }
-      problem.AddResidualBlock(new Forward(t.cost), nullptr, blocks);
+      problem.AddResidualBlock(t.cost.get(), nullptr, blocks);
     }
     ceres::Solver::Options o;
     o.linear_solver_type = ceres::DENSE_QR;
@@ -195,19 +199,6 @@ struct Scene {
     ceres::Solve(o, &problem, &s);
     ASSERT_TRUE(s.IsSolutionUsable()) << s.BriefReport();
   }
-
-  /// A cost function Ceres may own that forwards to a shared one.
-  class Forward : public ceres::CostFunction {
-   public:
-    explicit Forward(std::shared_ptr<ceres::CostFunction> f) : f_(std::move(f)) {
-      set_num_residuals(f_->num_residuals());
-      *mutable_parameter_block_sizes() = f_->parameter_block_sizes();
-    }
-    bool Evaluate(double const* const* p, double* r, double** J) const override { return f_->Evaluate(p, r, J); }
-
-   private:
-    std::shared_ptr<ceres::CostFunction> f_;
-  };
 };
 
 TEST(MarginaliserLines, PriorIsTheSchurComplementOfTheFullSystem) {
@@ -247,7 +238,8 @@ TEST(MarginaliserLines, PriorIsTheSchurComplementOfTheFullSystem) {
     if (!sc.touchesDrop(t)) rest.push_back(t);
   sc.normalEquations(rest, offset, m + n, &H_rest, &g_rest);
   const Eigen::MatrixXd Hdd_inv = H.topLeftCorner(m, m).inverse();
-  const Eigen::MatrixXd S = H.bottomRightCorner(n, n) - H.bottomLeftCorner(n, m) * Hdd_inv * H.topRightCorner(m, n);
+  const Eigen::MatrixXd S =
+      H.bottomRightCorner(n, n) - H.bottomLeftCorner(n, m) * Hdd_inv * H.topRightCorner(m, n);
   const Eigen::VectorXd gS = g.tail(n) - H.bottomLeftCorner(n, m) * Hdd_inv * g.head(m);
 
   // The prior, placed in the kept layout, plus the residuals that do not touch a dropped block.

@@ -50,7 +50,8 @@ TEST(MapLinesIo, CsvRoundTripIsExact) {
   const std::vector<MapLine> lines = randomLines(50, 5);
   const std::string path = (dir / "lines.csv").string();
   writeMapLinesCsv(path, lines);
-  EXPECT_EQ(io_test::headLines(path, 1).rfind("#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations", 0), 0u);
+  const std::string header = io_test::headLines(path, 1);
+  EXPECT_EQ(header.rfind("#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations", 0), 0u) << header;
   const std::vector<MapLine> back = readMapLinesCsv(path);
   ASSERT_EQ(back.size(), lines.size());
   for (std::size_t i = 0; i < lines.size(); ++i) {
