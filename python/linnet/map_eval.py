@@ -104,9 +104,12 @@ def read_map_lines(path: PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if not line or line.startswith("#"):
             continue
         tokens = [tok.strip() for tok in line.split(",")]
+        if len(tokens) == len(MAP_LINES_COLUMNS) + 2:
+            tokens = tokens[:len(MAP_LINES_COLUMNS)]  # t_last [ns], triangulation_angle [deg]: not needed here
         if len(tokens) != len(MAP_LINES_COLUMNS):
             raise InputError(f"{path}:{number}: {len(tokens)} columns, expected {len(MAP_LINES_COLUMNS)} "
-                             f"({','.join(MAP_LINES_COLUMNS)})")
+                             f"({','.join(MAP_LINES_COLUMNS)}) or {len(MAP_LINES_COLUMNS) + 2} "
+                             f"(with t_last,triangulation_angle)")
         line_id = _parse_int(path, number, tokens[0], "id")
         xyz = _parse_coordinates(path, number, tokens[1:7])
         obs = _parse_int(path, number, tokens[7], "observations")
