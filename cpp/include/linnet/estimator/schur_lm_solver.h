@@ -31,12 +31,12 @@ struct SchurLmOptions {
   double min_relative_decrease = 1e-3;    // a step is accepted when the cost falls by at least this share of the
                                           // decrease the linear model predicts
   double function_tolerance = 1e-6;       // stop when the relative cost change of a step is below this
-  double landmark_damping = 10.0;         // absolute Levenberg term added to the diagonal of multi-dimensional eliminated
+  double landmark_damping = 1e3;          // absolute Levenberg term added to the diagonal of multi-dimensional eliminated
                                           // blocks (lines, 4-DoF), whitened cost per tangent unit^2: bounds the step of a
                                           // line along a nearly unobservable direction (undamped, such a step diverged on
-                                          // the V1_02 room replay, APE 1.21 m). A line's weakest direction typically
-                                          // carries 150-600: 1e3 slowed lines down (lowtex V1_02 APE 0.034 vs 0.032 m
-                                          // with 10). Not applied when the same blocks are not eliminated
+                                          // the V1_02 room replay, APE 1.21 m). A trade-off: 10 gave V1_02 room / lowtex
+                                          // 0.0108 / 0.032 m (1e3: 0.0121 / 0.034) but MH_01 hall 0.022 m (1e3: 0.0148,
+                                          // points only 0.0173). Not applied when the same blocks are not eliminated
   double min_diagonal = 1e-6;             // clamp of diag(J^T J) in the damping
   double max_diagonal = 1e32;
 };
