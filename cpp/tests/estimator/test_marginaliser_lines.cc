@@ -18,6 +18,7 @@
 #include "linnet/estimator/factors/line_factor.h"
 #include "linnet/estimator/factors/point_factors.h"
 #include "linnet/estimator/factors/prior_factor.h"
+#include "estimator/pose_prior_cost.h"
 #include "linnet/estimator/manifolds.h"
 #include "linnet/estimator/marginaliser.h"
 #include "linnet/estimator/residual_spec.h"
@@ -29,22 +30,7 @@ namespace {
 
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// Pose prior [p - p0, 2 vec(q0^-1 q)] * weight on a [p, q xyzw] block.
-struct PosePrior {
-  PosePrior(const Pose& T0, double w) : T0_(T0), w_(w) {}
-  template <class T>
-  bool operator()(const T* x, T* r) const {
-    const Eigen::Quaternion<T> q(x[6], x[3], x[4], x[5]);
-    const Eigen::Quaternion<T> dq = T0_.q.conjugate().cast<T>() * q;
-    for (int k = 0; k < 3; ++k) r[k] = T(w_) * (x[k] - T(T0_.p[k]));
-    r[3] = T(2.0 * w_) * dq.x();
-    r[4] = T(2.0 * w_) * dq.y();
-    r[5] = T(2.0 * w_) * dq.z();
-    return true;
-  }
-  Pose T0_;
-  double w_;
-};
+using testing::PosePrior;
 
 struct Term {
   std::shared_ptr<ceres::CostFunction> cost;

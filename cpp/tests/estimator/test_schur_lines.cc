@@ -18,6 +18,7 @@
 
 #include "linnet/estimator/factors/line_factor.h"
 #include "linnet/estimator/factors/point_factors.h"
+#include "estimator/pose_prior_cost.h"
 #include "linnet/estimator/manifolds.h"
 #include "linnet/estimator/schur_lm_solver.h"
 #include "linnet/geometry/plucker.h"
@@ -27,20 +28,7 @@ namespace {
 
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// Pose prior [p - p0, 2 vec(q0^-1 q)] * weight on a [p, q xyzw] block.
-struct PosePrior {
-  PosePrior(const Pose& T0, double w) : T0_(T0), w_(w) {}
-  template <class T>
-  bool operator()(const T* x, T* r) const {
-    const Eigen::Quaternion<T> q(x[6], x[3], x[4], x[5]);
-    const Eigen::Quaternion<T> dq = T0_.q.conjugate().cast<T>() * q;
-    for (int k = 0; k < 3; ++k) r[k] = T(w_) * (x[k] - T(T0_.p[k]));
-    for (int k = 0; k < 3; ++k) r[3 + k] = T(2.0 * w_) * dq.vec()[k];
-    return true;
-  }
-  Pose T0_;
-  double w_;
-};
+using testing::PosePrior;
 
 // A kept 3-D "anchor" (Euclidean) pulled onto a line: r = w (p x v - n) / |v| (3 rows); with a prior on it, it gives
 // the eliminated line a kept neighbour that is not a pose.

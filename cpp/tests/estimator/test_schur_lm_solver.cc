@@ -12,28 +12,14 @@
 
 #include "linnet/core/error.h"
 #include "linnet/estimator/factors/point_factors.h"
+#include "estimator/pose_prior_cost.h"
 #include "linnet/estimator/manifolds.h"
 #include "linnet/estimator/schur_lm_solver.h"
 
 namespace linnet {
 namespace {
 
-// Pose prior: [p - p0, 2 vec(q0^-1 q)] * weight, on a [p, q xyzw] block.
-struct PosePrior {
-  PosePrior(const Pose& T0, double w) : T0_(T0), w_(w) {}
-  template <class T>
-  bool operator()(const T* x, T* r) const {
-    const Eigen::Quaternion<T> q(x[6], x[3], x[4], x[5]);
-    const Eigen::Quaternion<T> dq = T0_.q.conjugate().cast<T>() * q;
-    for (int k = 0; k < 3; ++k) r[k] = T(w_) * (x[k] - T(T0_.p[k]));
-    r[3] = T(2.0 * w_) * dq.x();
-    r[4] = T(2.0 * w_) * dq.y();
-    r[5] = T(2.0 * w_) * dq.z();
-    return true;
-  }
-  Pose T0_;
-  double w_;
-};
+using testing::PosePrior;
 
 struct Problem {
   std::vector<std::array<double, 7>> poses;
