@@ -90,21 +90,31 @@ bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const
   }
   const Vec6 L = normalisePlucker(best);
   // Every cam0 observation must back-project in front of its camera, within the depth range; the segment short
-  // enough. The extent starts from these.
-  LineLandmark tmp = lm;
-  tmp.setL(L);
-  tmp.has_extent = false;
+  // enough. The extent starts from these. Checked on the landmark itself (no copy of its observations); a rejected
+  // candidate leaves its geometry as it was.
+  const std::array<double, 6> saved_plucker = lm.plucker;
+  const bool saved_has_extent = lm.has_extent;
+  const Vec3 saved_a = lm.a, saved_b = lm.b;
+  const auto reject = [&] {
+    lm.plucker = saved_plucker;
+    lm.has_extent = saved_has_extent;
+    lm.a = saved_a;
+    lm.b = saved_b;
+    lm.triangulated = false;
+    return false;
+  };
+  lm.setL(L);
+  lm.has_extent = false;
   for (const auto& [fid, o] : lm.obs) {
     const WindowFrame* f = window.find(fid);
     if (f == nullptr) continue;
     Vec3 a, b;
-    if (!backProject(L, f->T_W_B() * T_B_C0_, o.s0, o.e0, &a, &b)) return false;
-    extend(tmp, a, b);
+    if (!backProject(L, f->T_W_B() * T_B_C0_, o.s0, o.e0, &a, &b)) return reject();
+    extend(lm, a, b);
   }
-  if (!tmp.has_extent || (tmp.b - tmp.a).norm() > options_.max_length_m) return false;
-  tmp.triangulated = true;
-  if (meanErrorPx(window, tmp) > options_.outlier_px) return false;
-  lm = std::move(tmp);
+  if (!lm.has_extent || (lm.b - lm.a).norm() > options_.max_length_m) return reject();
+  lm.triangulated = true;
+  if (meanErrorPx(window, lm) > options_.outlier_px) return reject();
   return true;
 }
 

@@ -9,6 +9,7 @@
 // there), and the line lives on in the window with its remaining observations.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
