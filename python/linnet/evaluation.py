@@ -142,18 +142,24 @@ def trajectory_from_arrays(t_ns, positions, quaternions_wxyz, name: str = "<arra
 # ------------------------------------------------------------------------------------------------------------- files
 
 
-def _data_lines(path: Path):
-    """Yield (line number, stripped text) for every non-comment, non-blank line."""
+def read_text_file(path: Path, what: str, name_if_missing: bool = False) -> str:
+    """The text of a UTF-8 file; InputError naming the file when it is missing (with `what` if name_if_missing), a
+    directory ("expected <what>"), not text or unreadable."""
     try:
-        text = path.read_text(encoding="utf-8", errors="strict")
+        return path.read_text(encoding="utf-8", errors="strict")
     except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
+        raise InputError(f"{path}: no such file" + (f" ({what})" if name_if_missing else "")) from None
     except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, expected a trajectory file") from None
+        raise InputError(f"{path}: is a directory, expected {what}") from None
     except UnicodeDecodeError as e:
         raise InputError(f"{path}: not a text file ({e.reason} at byte {e.start})") from None
     except OSError as e:
         raise InputError(f"{path}: cannot read ({e.strerror})") from None
+
+
+def _data_lines(path: Path):
+    """Yield (line number, stripped text) for every non-comment, non-blank line."""
+    text = read_text_file(path, "a trajectory file")
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if line and not line.startswith("#"):

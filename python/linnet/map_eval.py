@@ -30,7 +30,7 @@ from typing import Optional, Union
 import numpy as np
 
 from linnet import evaluation as ev
-from linnet.evaluation import InputError
+from linnet.evaluation import InputError, read_text_file
 
 __all__ = [
     "MAP_LINES_COLUMNS",
@@ -56,16 +56,7 @@ _ROTATION_TOLERANCE = 1e-6  # |R^T R - I| and |det R - 1| accepted for T_gt_W
 
 
 def _read_text_lines(path: Path, what: str) -> list:
-    try:
-        return path.read_text(encoding="utf-8", errors="strict").splitlines()
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file ({what})") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, expected {what}") from None
-    except UnicodeDecodeError as e:
-        raise InputError(f"{path}: not a text file ({e.reason} at byte {e.start})") from None
-    except OSError as e:
-        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    return read_text_file(path, what, name_if_missing=True).splitlines()
 
 
 def _parse_int(path: Path, number: int, token: str, column: str) -> int:
