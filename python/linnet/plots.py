@@ -185,3 +185,30 @@ def plot_all(
 def plot_ape(ape_result: ErrorResult, out_dir, gt_full: Optional[Trajectory] = None) -> list:
     """The APE plots (top view, error over time, x/y/z) into out_dir; same as plot_all without RPE."""
     return plot_all(ape_result, out_dir, gt_full=gt_full)
+
+
+def plot_imu_spectra(models: dict, path, options: Optional[PlotOptions] = None) -> Path:
+    """PSD of the IMU error per axis (2 x 3 panels: gyroscope, accelerometer), one curve per (label, phase).
+    models: label -> MeasuredImuModel (linnet.sim.imu_model), e.g. {"real": fitted, "simulated": refitted}."""
+    from linnet.sim.imu_model import AXES, PHASES
+
+    options = options or PlotOptions()
+    fig = _figure(options, height_in=options.height_in * 1.2)
+    axes = fig.subplots(2, 3, sharex=True)
+    styles = {"rest": ":", "flight": "-"}
+    for k, name in enumerate(AXES):
+        ax = axes[k // 3][k % 3]
+        for j, (label, model) in enumerate(models.items()):
+            for ph in PHASES:
+                f = model.freqs_hz
+                sel = f > 0
+                ax.semilogy(f[sel], model.psd[ph][k][sel], styles[ph], color=f"C{j}", lw=0.8,
+                            label=f"{label}, {ph}")
+        ax.set_title(name, fontsize=9)
+        ax.grid(True, which="both", lw=0.3)
+        if k // 3 == 1:
+            ax.set_xlabel("frequency [Hz]")
+    axes[0][0].set_ylabel("PSD [(rad/s)$^2$/Hz]")
+    axes[1][0].set_ylabel("PSD [(m/s$^2$)$^2$/Hz]")
+    axes[0][0].legend(fontsize=7)
+    return _save(fig, path)

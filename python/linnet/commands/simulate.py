@@ -5,6 +5,7 @@ import json
 
 import click
 
+from linnet.sim.realism import CALIB_ERRORS, REALISM_LEVELS, REALISM_PRESETS
 from linnet.sim.scene import SCENES
 
 
@@ -17,17 +18,32 @@ from linnet.sim.scene import SCENES
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the scene, the IMU noise and the images.")
 @click.option("--start", type=float, default=0.0, show_default=True, help="Seconds to skip into the trajectory.")
 @click.option("--duration", type=float, default=None, help="Seconds to simulate (default: to the end).")
-@click.option("--imu-noise", default="euroc", show_default=True, metavar="euroc|none|FILE",
-              help="IMU noise: EuRoC ADIS16448 densities, none, or a YAML with Kalibr's noise keys.")
+@click.option("--realism", type=click.Choice(REALISM_LEVELS), default="easy", show_default=True,
+              help="Preset: easy = clean sensors; hard = --blur --exposure-changes --imu-noise measured "
+                   "--calib-error typical --time-offset-ms 3. Options given explicitly override the preset.")
+@click.option("--imu-noise", default=None, metavar="euroc|none|measured|FILE",
+              help="IMU noise: EuRoC ADIS16448 white-noise densities, none, measured (spectra of the real V1_01_easy "
+                   "flight, vibration included), a model from linnet sim fit-imu, or a YAML with Kalibr's noise keys. "
+                   "[preset: easy euroc, hard measured]")
 @click.option("--real-imu", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Use this EuRoC imu0/data.csv instead of a synthetic IMU (images still rendered from GT).")
-@click.option("--blur", is_flag=True, help="Motion blur (sub-frame averaging over a 10 ms exposure).")
-@click.option("--exposure-changes", is_flag=True, help="Auto-exposure-like gain changes.")
+@click.option("--blur/--no-blur", default=None, help="Motion blur (sub-frame averaging over a 10 ms exposure).")
+@click.option("--exposure-changes/--no-exposure-changes", default=None, help="Auto-exposure-like gain changes.")
+@click.option("--calib-error", type=click.Choice(CALIB_ERRORS), default=None,
+              help="Perturb the written calibration (intrinsics, distortion, extrinsics) by typical Kalibr errors; "
+                   "images use the true one. [preset: easy none, hard typical]")
+@click.option("--time-offset-ms", type=float, default=None,
+              help="Constant offset added to every written camera stamp, ms. [preset: easy 0, hard 3]")
+@click.option("--stamp-jitter-us", type=float, default=None,
+              help="Gaussian jitter (std, us) added to every written camera stamp. [preset: 0]")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False), default=None,
               help="Also write the summary (frames, timings, fit residual) to this JSON file.")
-def simulate_command(trajectory, scene, out_dir, seed, start, duration, imu_noise, real_imu, blur, exposure_changes,
-                     json_file):
+def simulate_command(trajectory, scene, out_dir, seed, start, duration, realism, imu_noise, real_imu, blur,
+                     exposure_changes, calib_error, time_offset_ms, stamp_jitter_us, json_file):
     """Render a EuRoC-like stereo + IMU sequence with ground truth from a trajectory and a scene."""
+    given = {"blur": blur, "exposure_changes": exposure_changes, "imu_noise": imu_noise, "calib_error": calib_error,
+             "time_offset_ms": time_offset_ms, "stamp_jitter_us": stamp_jitter_us}
+    settings = {k: (v if v is not None else REALISM_PRESETS[realism][k]) for k, v in given.items()}
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from linnet.sim import InputError, simulate
@@ -41,8 +57,7 @@ def simulate_command(trajectory, scene, out_dir, seed, start, duration, imu_nois
 
         try:
             summary = simulate(trajectory, scene, out_dir, seed=seed, start=start, duration=duration,
-                               imu_noise=imu_noise, real_imu=real_imu, blur=blur, exposure_changes=exposure_changes,
-                               progress=progress)
+                               real_imu=real_imu, progress=progress, **settings)
         except InputError as e:
             raise click.UsageError(str(e)) from None
     fit = summary["fit"]

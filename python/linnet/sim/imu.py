@@ -3,17 +3,20 @@
 Noise model (Kalibr / EuRoC imu0 sensor.yaml convention, continuous-time densities), sampled at period dt:
     measurement = truth + bias_k + n_k,  n_k ~ N(0, density^2 / dt)
     bias_{k+1}  = bias_k + w_k,          w_k ~ N(0, random_walk^2 * dt)
+With a measured model (``--imu-noise measured``, see linnet.sim.imu_model) n_k is coloured noise with the spectra of a
+real flight's IMU error instead (vibration included), the bias walks as above with the model's densities.
 The true biases are written to the ground truth (b_w, b_a columns of state_groundtruth_estimate0).
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 import yaml
 
+from linnet.sim.imu_model import MODEL_KIND, MeasuredImuModel, shipped_model_path, synthesize_noise
 from linnet.sim.trajectory import InputError, SplineTrajectory
 
 IMU_RATE_HZ = 200.0
@@ -29,21 +32,39 @@ class ImuNoise:
     accelerometer_random_walk: float = 3.0000e-3     # m/s^3/sqrt(Hz)
     initial_gyro_bias_sigma: float = 0.01            # rad/s, std of the random initial gyroscope bias
     initial_accel_bias_sigma: float = 0.05           # m/s^2, std of the random initial accelerometer bias
+    # A measured noise model: replaces the white noise (the two densities above stay the datasheet's, written to the
+    # replay's imu0/sensor.yaml as a real EuRoC folder has them).
+    model: Optional[MeasuredImuModel] = None
+
+    def numbers(self) -> dict:
+        """The scalar fields (densities, random walks, initial bias spreads)."""
+        return {f.name: float(getattr(self, f.name)) for f in fields(self) if f.name != "model"}
 
     @classmethod
     def none(cls) -> "ImuNoise":
         return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     @classmethod
+    def measured(cls, model: MeasuredImuModel) -> "ImuNoise":
+        return cls(gyroscope_random_walk=model.gyroscope_random_walk,
+                   accelerometer_random_walk=model.accelerometer_random_walk,
+                   initial_gyro_bias_sigma=model.initial_gyro_bias_sigma,
+                   initial_accel_bias_sigma=model.initial_accel_bias_sigma, model=model)
+
+    @classmethod
     def from_spec(cls, spec: str) -> "ImuNoise":
-        """"euroc", "none", or a YAML file with any of the field names (a Kalibr imu sensor.yaml works)."""
+        """"euroc", "none", "measured" (the shipped model fitted to EuRoC V1_01_easy), a measured model file (``linnet
+        sim fit-imu``), or a YAML file with any of the field names (a Kalibr imu sensor.yaml works)."""
         if spec == "euroc":
             return cls()
         if spec == "none":
             return cls.none()
+        if spec == "measured":
+            return cls.measured(MeasuredImuModel.load(shipped_model_path()))
         path = Path(spec)
         if not path.is_file():
-            raise InputError(f"--imu-noise: '{spec}' is neither 'euroc', 'none' nor an existing YAML file")
+            raise InputError(f"--imu-noise: '{spec}' is neither 'euroc', 'none', 'measured' nor an existing YAML "
+                             "file")
         text = path.read_text(encoding="utf-8")
         if text.startswith("%YAML"):  # OpenCV-style header that PyYAML rejects
             text = text.split("\n", 1)[1]
@@ -51,9 +72,11 @@ class ImuNoise:
             data = yaml.safe_load(text) or {}
         except yaml.YAMLError as e:
             raise InputError(f"{path}: not valid YAML: {e}") from None
+        if isinstance(data, dict) and data.get("kind") == MODEL_KIND:
+            return cls.measured(MeasuredImuModel.from_dict(data, str(path)))
         noise = cls()
         for key, value in data.items():
-            if key in asdict(noise):
+            if key in noise.numbers():
                 if not isinstance(value, (int, float)) or value < 0:
                     raise InputError(f"{path}: key '{key}' must be a non-negative number, got {value!r}")
                 setattr(noise, key, float(value))
@@ -83,32 +106,39 @@ def synthesize(spline: SplineTrajectory, t_ns: np.ndarray, noise: ImuNoise,
     walk_g[0] = walk_a[0] = 0.0
     bg = bg0 + np.cumsum(walk_g, axis=0)
     ba = ba0 + np.cumsum(walk_a, axis=0)
-    ng = rng.standard_normal((n, 3)) * noise.gyroscope_noise_density / np.sqrt(dt)
-    na = rng.standard_normal((n, 3)) * noise.accelerometer_noise_density / np.sqrt(dt)
+    if noise.model is not None:
+        coloured = synthesize_noise(noise.model, t_ns, st, rng)
+        ng, na = coloured[:, :3], coloured[:, 3:]
+    else:
+        ng = rng.standard_normal((n, 3)) * noise.gyroscope_noise_density / np.sqrt(dt)
+        na = rng.standard_normal((n, 3)) * noise.accelerometer_noise_density / np.sqrt(dt)
     return ImuData(t_ns, st.omega_B + bg + ng, st.f_B + ba + na, bg, ba)
 
 
-def load_real_imu(path: str) -> ImuData:
+def load_real_imu(path: str, what: str = "--real-imu") -> ImuData:
     """A EuRoC imu0/data.csv (t_ns, w_xyz, a_xyz). Biases unknown: zeros (filled from the trajectory when known)."""
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"--real-imu: {p}: file not found")
+        raise InputError(f"{what}: {p}: file not found")
     t, vals = [], []
-    with open(p, "r", encoding="utf-8") as f:
-        for lineno, raw in enumerate(f, 1):
-            line = raw.strip()
-            if not line or line.startswith("#"):
-                continue
-            fields = line.split(",")
-            if len(fields) != 7:
-                raise InputError(f"{p}:{lineno}: expected 7 columns (t_ns, w_xyz, a_xyz), found {len(fields)}")
-            try:
-                t.append(int(fields[0]))
-                vals.append([float(x) for x in fields[1:]])
-            except ValueError:
-                raise InputError(f"{p}:{lineno}: cannot parse '{line[:60]}'") from None
-            if len(t) > 1 and t[-1] <= t[-2]:
-                raise InputError(f"{p}:{lineno}: time stamps not strictly increasing")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{what}: {p}: not a text file (expected a EuRoC imu0/data.csv)") from None
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        cols = line.split(",")
+        if len(cols) != 7:
+            raise InputError(f"{p}:{lineno}: expected 7 columns (t_ns, w_xyz, a_xyz), found {len(cols)}")
+        try:
+            t.append(int(cols[0]))
+            vals.append([float(x) for x in cols[1:]])
+        except ValueError:
+            raise InputError(f"{p}:{lineno}: cannot parse '{line[:60]}'") from None
+        if len(t) > 1 and t[-1] <= t[-2]:
+            raise InputError(f"{p}:{lineno}: time stamps not strictly increasing")
     if len(t) < 2:
         raise InputError(f"{p}: no IMU samples")
     v = np.array(vals)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -13,6 +13,7 @@ import numpy as np
 
 from linnet.sim import writer
 from linnet.sim.imu import IMU_PERIOD_NS, ImuData, ImuNoise, interpolate_biases, load_real_imu, synthesize
+from linnet.sim.realism import CALIB_ERRORS, camera_stamps, perturb_cameras
 from linnet.sim.rig import EUROC_CAM0, EUROC_CAM1
 from linnet.sim.scene import SCENES, SceneSpec, build_scene
 from linnet.sim.trajectory import (InputError, SplineState, SplineTrajectory, TrajectorySamples,
@@ -122,18 +123,27 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
              duration: Optional[float] = None, imu_noise: str = "euroc", real_imu: Optional[str] = None,
              blur: bool = False, exposure_changes: bool = False,
              progress: Optional[Callable[[int, int], None]] = None, render_options: Optional[dict] = None,
-             knot_dt: float = 0.1) -> dict:
+             knot_dt: float = 0.1, calib_error: str = "none", time_offset_ms: float = 0.0,
+             stamp_jitter_us: float = 0.0) -> dict:
     """Simulates a EuRoC-like stereo + IMU sequence and writes it to `out_dir` (the folder that will hold mav0/).
 
     trajectory: TUM / EuRoC csv path, or "builtin:loop". scene: one of SCENES. start / duration: seconds into the
-    trajectory. imu_noise: "euroc" | "none" | YAML file (ignored with real_imu). real_imu: a EuRoC imu0/data.csv whose
-    samples replace the synthetic IMU (images are still rendered from the trajectory). Returns a summary dict:
+    trajectory. imu_noise: "euroc" | "none" | "measured" | YAML file (ignored with real_imu). real_imu: a EuRoC
+    imu0/data.csv whose samples replace the synthetic IMU (images are still rendered from the trajectory).
+    calib_error ("none" | "typical"), time_offset_ms and stamp_jitter_us: see linnet.sim.realism (the ground truth is
+    unchanged). Returns a summary dict:
     frames, duration_s, render_s (wall), render_cpu_s, stereo_fps, fit (residual), scene stats, out_dir.
     Same arguments -> byte-identical files.
     """
+    if calib_error not in CALIB_ERRORS:
+        raise InputError(f"unknown --calib-error '{calib_error}' (known: {', '.join(CALIB_ERRORS)})")
     rp = prepare(trajectory, scene, seed, start, duration, imu_noise, real_imu, knot_dt)
+    stamps = camera_stamps(rp.cam_t, time_offset_ms, stamp_jitter_us, seed)
     spline, imu_t, state, imu, noise, cam_t, cams, scene_spec = (rp.spline, rp.imu_t, rp.state, rp.imu, rp.noise,
                                                                  rp.cam_t, rp.cameras, rp.scene)
+    # Frames whose written stamp would fall outside the IMU's time range (a clock offset at either end) are left out.
+    inside = (stamps >= imu_t[0]) & (stamps <= imu_t[-1])
+    cam_t, stamps = cam_t[inside], stamps[inside]
     fit = rp.fit
     cam_state = spline.evaluate(cam_t)
     native_scene = scene_spec.to_native()
@@ -146,7 +156,8 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
     out = Path(out_dir)
     mav0 = out / "mav0"
     writer.write_body(mav0)
-    img_dirs = [writer.write_camera(mav0, cam, cam_t) for cam in cams]
+    written, calib_drawn = (perturb_cameras(cams, seed) if calib_error == "typical" else (cams, None))
+    img_dirs = [writer.write_camera(mav0, cam, stamps) for cam in written]
     t0_wall, t0_cpu = time.perf_counter(), time.process_time()
     for k, t in enumerate(cam_t):
         T_W_B = _pose(cam_state.R[k], cam_state.p[k])
@@ -161,7 +172,7 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
                 img = r.expose(r.render_radiance_blurred(native_scene, poses), float(gains[k, c]), noise_seed)
             else:
                 img = r.render(native_scene, T_W_B @ cam.T_B_C, float(gains[k, c]), noise_seed)
-            cv2.imwrite(str(img_dirs[c] / f"{int(t)}.png"), img, PNG_PARAMS)
+            cv2.imwrite(str(img_dirs[c] / f"{int(stamps[k])}.png"), img, PNG_PARAMS)
         if progress is not None:
             progress(k + 1, cam_t.size)
     render_s, render_cpu = time.perf_counter() - t0_wall, time.process_time() - t0_cpu
@@ -173,9 +184,13 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
         "arguments": {"trajectory": str(trajectory), "scene": scene, "seed": int(seed), "start": float(start),
                       "duration": None if duration is None else float(duration), "imu_noise": imu_noise,
                       "real_imu": None if real_imu is None else str(real_imu), "blur": bool(blur),
-                      "exposure_changes": bool(exposure_changes), "knot_dt": float(knot_dt)},
+                      "exposure_changes": bool(exposure_changes), "knot_dt": float(knot_dt),
+                      "calib_error": calib_error, "time_offset_ms": float(time_offset_ms),
+                      "stamp_jitter_us": float(stamp_jitter_us)},
+        "calibration_error_drawn": calib_drawn,
         "fit": fit,
-        "imu_noise_used": None if noise is None else {k: float(v) for k, v in asdict(noise).items()},
+        "imu_noise_used": None if noise is None else noise.numbers(),
+        "imu_noise_model": None if noise is None or noise.model is None else noise.model.source,
         "frames": int(cam_t.size), "imu_samples": int(imu_t.size), "duration_s": duration_s,
         "t_first_ns": int(imu_t[0]), "t_last_ns": int(imu_t[-1]),
         "scene": {"name": scene, "quads": len(scene_spec.quads), "lines": len(scene_spec.lines),
