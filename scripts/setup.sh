@@ -38,7 +38,9 @@ if [ ! -f "$stamp" ]; then
   $VPY -m pip install -q -r <($VPY - <<'PYEOF'
 import tomllib
 d = tomllib.load(open("pyproject.toml", "rb"))
-deps = list(d["project"]["dependencies"]) + list(d["project"]["optional-dependencies"]["test"])
+extras = d["project"]["optional-dependencies"]
+# The test suite exercises the optional Ray executor of linnet bench suite: the cluster extra comes along.
+deps = list(d["project"]["dependencies"]) + list(extras["test"]) + list(extras["cluster"])
 print("\n".join(deps))
 PYEOF
 )

@@ -327,8 +327,8 @@ def band_levels(model: MeasuredImuModel, phase: str, bands=COMPARE_BANDS_HZ) -> 
 
 
 def compare_models(reference: MeasuredImuModel, other: MeasuredImuModel, bands=COMPARE_BANDS_HZ) -> dict:
-    """Per phase: the band levels' ratio other / reference in dB (6 x B), and the standard deviations of both in the
-    bands' range and their ratio (6,). Both models must be fitted the same way (same segment lengths)."""
+    """Per phase: the band levels' ratio other / reference in dB (6 x B), and the standard deviations of both, in the
+    bands' range and over the whole spectrum (0 to Nyquist), with their ratios (6,). Both models must be fitted the same way (same segment lengths)."""
     out = {"bands_hz": list(bands), "axes": list(AXES), "phases": {}}
     for ph in PHASES:
         ref, oth = band_levels(reference, ph, bands), band_levels(other, ph, bands)
@@ -336,8 +336,12 @@ def compare_models(reference: MeasuredImuModel, other: MeasuredImuModel, bands=C
             db = 10.0 * np.log10(oth / ref)
         s_ref = band_std(reference.freqs_hz, reference.psd[ph], bands[0], bands[-1])
         s_oth = band_std(other.freqs_hz, other.psd[ph], bands[0], bands[-1])
+        full_ref = band_std(reference.freqs_hz, reference.psd[ph], 0.0, reference.rate_hz)
+        full_oth = band_std(other.freqs_hz, other.psd[ph], 0.0, other.rate_hz)
         out["phases"][ph] = {"db": db.tolist(), "max_abs_db": float(np.nanmax(np.abs(db))),
                              "std_reference": s_ref.tolist(), "std_other": s_oth.tolist(),
                              "std_ratio": (s_oth / s_ref).tolist(),
+                             "std_full_reference": full_ref.tolist(), "std_full_other": full_oth.tolist(),
+                             "std_full_ratio": (full_oth / full_ref).tolist(),
                              "seconds": [reference.seconds[ph], other.seconds[ph]]}
     return out

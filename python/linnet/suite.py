@@ -1,0 +1,275 @@
+"""The benchmark suite's jobs and executors (``linnet bench suite``).
+
+A suite is a list of replays (a EuRoC motion through a scene, rendered once and cached) and, for each replay, one run
+per system. Render jobs and run jobs are plain functions of plain arguments, so that the same code runs
+
+  * serially in this process (``SerialExecutor``), or
+  * on Ray (``RayExecutor``; https://docs.ray.io): a local instance on this machine's cores, or an existing cluster by
+    address. Each job asks for one CPU; a run job waits for its replay's render job (Ray passes the render's result).
+    The replay cache and the run folders must then be on a folder every node sees (``--cache``, ``--runs``).
+
+Rows are collected in the suite's own order whatever the completion order, so a serial and a Ray run of the same
+suite give the same rows (timings aside). Ray is an optional dependency (``pip install linnet[cluster]``).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+SIM_VERSION = "sim-3"  # bump when the simulator's output changes, to invalidate caches
+#: Row keys that are timings (they differ between two runs of the same suite); every other key is reproducible.
+TIMING_KEYS = ("real_time_factor", "wall_s", "render_s")
+
+
+@dataclass(frozen=True)
+class ReplaySpec:
+    name: str                 # sequence name
+    gt_file: str              # trajectory file
+    scene: str
+    seed: int
+    start: float
+    duration: Optional[float]
+    settings: tuple           # sorted (key, value) pairs of simulate()'s realism keyword arguments
+
+    def key(self) -> str:
+        h = hashlib.sha256()
+        h.update(Path(self.gt_file).read_bytes())
+        h.update(json.dumps([SIM_VERSION, self.scene, self.seed, self.start, self.duration,
+                             list(self.settings)]).encode())
+        return h.hexdigest()[:16]
+
+    def folder(self, cache: Path) -> Path:
+        return Path(cache) / f"{Path(self.gt_file).stem}_{self.scene}_{self.key()}"
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    replay: ReplaySpec
+    system: str
+    command: Optional[str]    # None: the built-in linnet
+    out: str
+    timeout_s: float
+
+
+@dataclass
+class Suite:
+    replays: list = field(default_factory=list)   # ReplaySpec, in table order
+    runs: list = field(default_factory=list)      # RunSpec, in table order
+    cache: str = ""
+
+
+# ------------------------------------------------------------------------------------------------------------ jobs
+
+
+def render_job(spec: ReplaySpec, cache: str) -> dict:
+    """Render the replay into the cache unless it is there; returns {"dataset": folder, "summary": ..., "rendered"}.
+    Writes into a temporary folder first, so that a concurrent or interrupted render never leaves half a replay."""
+    from linnet.sim import simulate
+
+    folder = spec.folder(Path(cache))
+    done = folder / "replay.json"
+    if done.is_file():
+        return {"dataset": str(folder), "summary": json.loads(done.read_text()), "rendered": False}
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = folder.with_name(f"{folder.name}.tmp-{uuid.uuid4().hex[:8]}")
+    summary = simulate(spec.gt_file, spec.scene, tmp, seed=spec.seed, start=spec.start, duration=spec.duration,
+                       **dict(spec.settings))
+    summary["out_dir"] = str(folder)
+    (tmp / "replay.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
+    if folder.exists():  # another job finished the same replay meanwhile: keep theirs
+        shutil.rmtree(tmp, ignore_errors=True)
+    else:
+        tmp.rename(folder)
+    return {"dataset": str(folder), "summary": json.loads(done.read_text()), "rendered": True}
+
+
+def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    tum = out / "trajectory.tum"
+    if tum.exists():
+        tum.unlink()
+    if cmd is None:
+        argv = [sys.executable, "-m", "linnet.cli", "run", str(dataset), "--out", str(out), "--quiet"]
+    else:
+        text = cmd.format(dataset=shlex.quote(str(dataset)), out=shlex.quote(str(out)), tum=shlex.quote(str(tum)))
+        argv = ["/bin/sh", "-c", text]
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
+        rc, err = proc.returncode, proc.stderr.strip().splitlines()[-1:] if proc.stderr.strip() else []
+    except subprocess.TimeoutExpired:
+        rc, err = -1, [f"timed out after {timeout:g} s"]
+    wall = time.perf_counter() - t0
+    (out / "suite_stderr.txt").write_text("\n".join(err) + "\n")
+    result = {"returncode": rc, "wall_s": wall, "error": err[0] if (rc != 0 and err) else None}
+    summary_file = out / "summary.json"
+    if summary_file.is_file():
+        try:
+            result["summary"] = json.loads(summary_file.read_text())
+        except json.JSONDecodeError:
+            pass
+    return result
+
+
+def _evaluate(tum: Path, gt: Path):
+    from linnet import evaluation
+
+    if not tum.is_file():
+        return None, "no trajectory written"
+    try:
+        return float(evaluation.ape(str(tum), str(gt), align="se3", t_max_diff=0.01).rmse), None
+    except Exception as e:  # noqa: BLE001 - report any evaluation failure in the table
+        return None, str(e).splitlines()[0][:80]
+
+
+def run_job(spec: RunSpec, replay: dict) -> dict:
+    """Run one system on a rendered replay and evaluate it: one table row."""
+    dataset = Path(replay["dataset"])
+    sim = replay["summary"]
+    out = Path(spec.out)
+    res = _run_system(spec.command, dataset, out, spec.timeout_s)
+    ape, eval_err = _evaluate(out / "trajectory.tum", dataset / "mav0" / "state_groundtruth_estimate0" / "data.csv")
+    summ = res.get("summary", {})
+    seq_dur = sim["duration_s"]
+    return {
+        "sequence": spec.replay.name, "scene": spec.replay.scene, "system": spec.system, "ape_rmse_m": ape,
+        "real_time_factor": float(summ.get("real_time_factor", res["wall_s"] / max(seq_dur, 1e-9))),
+        "init_time_s": summ.get("initialisation_time_s"),
+        "failures": summ.get("reinitialisations", 0 if res["returncode"] == 0 else None),
+        "error": res["error"] or (eval_err if ape is None else None),
+        "returncode": res["returncode"], "wall_s": res["wall_s"], "frames": sim["frames"],
+        "duration_s": seq_dur, "dataset": str(dataset), "out": str(out),
+        "realism": dict(spec.replay.settings),
+    }
+
+
+# ------------------------------------------------------------------------------------------------------- executors
+
+
+class SerialExecutor:
+    name = "serial"
+
+    def run(self, suite: Suite, progress: Callable[[str], None]) -> list:
+        renders = {}
+        rows = []
+        for spec in suite.replays:
+            renders[spec] = render_job(spec, suite.cache)
+            progress(f"replay {spec.name}/{spec.scene}")
+        for run in suite.runs:
+            rows.append(run_job(run, renders[run.replay]))
+            progress(f"{run.system} on {run.replay.name}/{run.replay.scene}")
+        return rows
+
+
+class RayExecutor:
+    """Jobs as Ray tasks of one CPU each. address None: a local instance (this machine's cores)."""
+    name = "ray"
+
+    def __init__(self, address: Optional[str] = None, num_cpus: Optional[int] = None):
+        import ray  # noqa: F401 - fail early with ImportError when the extra is missing
+
+        self.address, self.num_cpus = address, num_cpus
+
+    def run(self, suite: Suite, progress: Callable[[str], None]) -> list:
+        import ray
+
+        started_here = not ray.is_initialized()
+        if started_here:
+            kwargs = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+            if self.address:
+                ray.init(address=self.address, **kwargs)
+            else:
+                ray.init(num_cpus=self.num_cpus, **kwargs)
+        try:
+            remote_render = ray.remote(num_cpus=1, max_retries=0)(render_job)
+            remote_run = ray.remote(num_cpus=1, max_retries=0)(run_job)
+            render_refs = {spec: remote_render.remote(spec, suite.cache) for spec in suite.replays}
+            labels = {}
+            for spec, ref in render_refs.items():
+                labels[ref] = f"replay {spec.name}/{spec.scene}"
+            run_refs = [remote_run.remote(run, render_refs[run.replay]) for run in suite.runs]
+            for run, ref in zip(suite.runs, run_refs):
+                labels[ref] = f"{run.system} on {run.replay.name}/{run.replay.scene}"
+            pending = list(labels)
+            while pending:
+                ready, pending = ray.wait(pending, num_returns=1)
+                progress(labels[ready[0]])
+            return ray.get(run_refs)
+        finally:
+            if started_here:
+                ray.shutdown()
+
+
+def make_executor(mode: str, address: Optional[str] = None, echo: Callable[[str], None] = print):
+    """mode: "auto" (Ray when installed, else serial), "serial" or "ray"; an address implies Ray."""
+    if mode == "serial" and not address:
+        return SerialExecutor()
+    try:
+        return RayExecutor(address)
+    except ImportError:
+        if mode == "ray" or address:
+            raise RuntimeError("Ray is not installed: pip install 'linnet[cluster]' (or run with --executor serial)")
+        echo("[suite] Ray is not installed (pip install 'linnet[cluster]'): running the jobs serially")
+        return SerialExecutor()
+
+
+# ---------------------------------------------------------------------------------------------------------- output
+
+
+def markdown_table(rows: list) -> str:
+    head = ("| sequence | scene | system | APE RMSE [m] | real-time factor | init [s] | failures |\n"
+            "|---|---|---|---|---|---|---|")
+    lines = [head]
+    for r in rows:
+        ape = f"{r['ape_rmse_m']:.3f}" if r["ape_rmse_m"] is not None else "—"
+        init = f"{r['init_time_s']:.2f}" if r["init_time_s"] is not None else "—"
+        fail = r["failures"] if r["failures"] is not None else "—"
+        if r["error"]:
+            fail = f"{fail} ({r['error']})"
+        lines.append(f"| {r['sequence']} | {r['scene']} | {r['system']} | {ape} | {r['real_time_factor']:.2f} | "
+                     f"{init} | {fail} |")
+    return "\n".join(lines)
+
+
+def reproducible(row: dict) -> dict:
+    """The row without its timings: what a serial and a Ray run of the same suite share bit for bit."""
+    return {k: v for k, v in row.items() if k not in TIMING_KEYS}
+
+
+def plot_rows(rows: list, path) -> Path:
+    """Two panels, APE RMSE and real-time factor, one bar per system for each sequence / scene."""
+    import numpy as np
+
+    from linnet.plots import PlotOptions, _figure, _save
+
+    groups = list(dict.fromkeys(f"{r['sequence']}\n{r['scene']}" for r in rows))
+    systems = list(dict.fromkeys(r["system"] for r in rows))
+    fig = _figure(PlotOptions(), height_in=6.0)
+    axes = fig.subplots(2, 1, sharex=True)
+    width = 0.8 / max(1, len(systems))
+    x = np.arange(len(groups))
+    for j, system in enumerate(systems):
+        ape = [next((r["ape_rmse_m"] for r in rows if r["system"] == system and
+                     f"{r['sequence']}\n{r['scene']}" == g), None) for g in groups]
+        rtf = [next((r["real_time_factor"] for r in rows if r["system"] == system and
+                     f"{r['sequence']}\n{r['scene']}" == g), None) for g in groups]
+        offs = x + (j - (len(systems) - 1) / 2) * width
+        axes[0].bar(offs, [np.nan if v is None else v for v in ape], width, label=system, color=f"C{j}")
+        axes[1].bar(offs, [np.nan if v is None else v for v in rtf], width, color=f"C{j}")
+    axes[0].set_ylabel("APE RMSE [m]")
+    axes[1].set_ylabel("real-time factor")
+    axes[1].axhline(1.0, color="0.5", lw=0.6, ls="--")
+    axes[1].set_xticks(x, groups, fontsize=8)
+    axes[0].legend(fontsize=8)
+    for ax in axes:
+        ax.grid(True, axis="y", lw=0.3)
+    return _save(fig, path)
