@@ -165,6 +165,9 @@ def test_calibration_error_is_written_and_read_back(tmp_path):
     rel_true = np.linalg.inv(EUROC_CAM0.T_B_C) @ EUROC_CAM1.T_B_C
     rel_pert = np.linalg.inv(expected[0].T_B_C) @ expected[1].T_B_C
     assert np.linalg.norm(rel_pert[:3, 3] - rel_true[:3, 3]) < 6 * a.stereo_translation_m
+    # What sets the disparity, the difference of the principal points' offsets, is the small stereo part only.
+    d0, d1 = drawn["cam0"]["intrinsics_offset_px"], drawn["cam1"]["intrinsics_offset_px"]
+    assert abs(d1[2] - d0[2]) < 6 * a.stereo_intrinsics_px
 
 
 def test_time_offset_shifts_camera_stamps_exactly(tmp_path):
