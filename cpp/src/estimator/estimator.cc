@@ -42,10 +42,20 @@ std::vector<Vec3> Estimator::landmarkPositions() const { return core_->landmarkP
 std::vector<MapLine> Estimator::mapLines() const { return core_->mapLines(); }
 
 // ---------------------------------------------------------------------------------------------------------------
+namespace {
+ImuNoise weightedNoise(ImuNoise noise, const ImuWeightOptions& w) {
+  noise.acc_noise_density *= w.noise_density_scale;
+  noise.gyr_noise_density *= w.noise_density_scale;
+  noise.acc_random_walk *= w.random_walk_scale;
+  noise.gyr_random_walk *= w.random_walk_scale;
+  return noise;
+}
+}  // namespace
+
 EstimatorCore::EstimatorCore(const EstimatorOptions& options, const ImuNoise& noise, const Pose& T_B_C0,
                              std::optional<Pose> T_B_C1)
     : options_(options),
-      noise_(noise),
+      noise_(weightedNoise(noise, options.imu)),
       T_B_C0_(T_B_C0),
       T_B_C1_(T_B_C1),
       g_W_(0.0, 0.0, -noise.gravity),
