@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shlex
 import shutil
 import subprocess
@@ -25,9 +26,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
-SIM_VERSION = "sim-3"  # bump when the simulator's output changes, to invalidate caches
+SIM_VERSION = "sim-4"  # bump when the simulator's output changes, to invalidate caches
 #: Row keys that are timings (they differ between two runs of the same suite); every other key is reproducible.
 TIMING_KEYS = ("real_time_factor", "wall_s", "render_s")
+#: Environment variables that set libraries' thread counts. Ray sets some of them in its workers (OMP_NUM_THREADS=1);
+#: a system run inherits them, and a different thread count can change the floating-point summation order. Run jobs
+#: therefore get the values the suite was started with, whichever executor runs them.
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "TBB_NUM_THREADS")
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,7 @@ class RunSpec:
     command: Optional[str]    # None: the built-in linnet
     out: str
     timeout_s: float
+    thread_env: tuple = ()    # (name, value or None) of THREAD_ENV as the suite was started
 
 
 @dataclass
@@ -92,7 +98,12 @@ def render_job(spec: ReplaySpec, cache: str) -> dict:
     return {"dataset": str(folder), "summary": json.loads(done.read_text()), "rendered": True}
 
 
-def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float) -> dict:
+def driver_thread_env() -> tuple:
+    """THREAD_ENV as set in this process (None where unset), for RunSpec.thread_env."""
+    return tuple((name, os.environ.get(name)) for name in THREAD_ENV)
+
+
+def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float, thread_env: tuple = ()) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     tum = out / "trajectory.tum"
     if tum.exists():
@@ -102,9 +113,15 @@ def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float) ->
     else:
         text = cmd.format(dataset=shlex.quote(str(dataset)), out=shlex.quote(str(out)), tum=shlex.quote(str(tum)))
         argv = ["/bin/sh", "-c", text]
+    env = dict(os.environ)
+    for name, value in thread_env:
+        if value is None:
+            env.pop(name, None)
+        else:
+            env[name] = value
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
+        proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, env=env)
         rc, err = proc.returncode, proc.stderr.strip().splitlines()[-1:] if proc.stderr.strip() else []
     except subprocess.TimeoutExpired:
         rc, err = -1, [f"timed out after {timeout:g} s"]
@@ -136,7 +153,7 @@ def run_job(spec: RunSpec, replay: dict) -> dict:
     dataset = Path(replay["dataset"])
     sim = replay["summary"]
     out = Path(spec.out)
-    res = _run_system(spec.command, dataset, out, spec.timeout_s)
+    res = _run_system(spec.command, dataset, out, spec.timeout_s, spec.thread_env)
     ape, eval_err = _evaluate(out / "trajectory.tum", dataset / "mav0" / "state_groundtruth_estimate0" / "data.csv")
     summ = res.get("summary", {})
     seq_dur = sim["duration_s"]

@@ -18,8 +18,8 @@ from pathlib import Path
 import click
 
 from linnet.sim.realism import REALISM_LEVELS, REALISM_PRESETS
-from linnet.suite import (ReplaySpec, RunSpec, Suite, make_executor, markdown_table, plot_rows,  # noqa: F401
-                          reproducible)
+from linnet.suite import (ReplaySpec, RunSpec, Suite, driver_thread_env, make_executor, markdown_table,  # noqa: F401
+                          plot_rows, reproducible)
 
 DEFAULT_SEQUENCES = ("V1_02_medium", "MH_01_easy", "V2_01_easy")
 
@@ -77,6 +77,7 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
         if s != "auto" and s not in SCENES:
             raise click.UsageError(f"--scenes: unknown scene '{s}' (known: auto, {', '.join(SCENES)})")
     settings = tuple(sorted(REALISM_PRESETS[realism].items()))
+    thread_env = driver_thread_env()
     suite = Suite(cache=str(cache))
     for name, gt_file in seqs:
         for scene in ([default_scene(name)] if scene_list == ["auto"] else scene_list):
@@ -86,7 +87,8 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
             if replay not in suite.replays:
                 suite.replays.append(replay)
             for sys_name, cmd in parse_systems(systems):
-                suite.runs.append(RunSpec(replay, sys_name, cmd, str(runs / f"{name}_{scene}" / sys_name), timeout))
+                suite.runs.append(RunSpec(replay, sys_name, cmd, str(runs / f"{name}_{scene}" / sys_name), timeout,
+                                          thread_env))
     return suite
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
+from scipy.linalg import solveh_banded
 
 from linnet.sim.rotations import exp_so3, matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 
@@ -237,7 +238,14 @@ class SplineTrajectory:
         ar = np.arange(m - 2)
         D[ar, ar], D[ar, ar + 1], D[ar, ar + 2] = 1.0, -2.0, 1.0
         lam = smoothing * max(1.0, t.size / n_seg)
-        X = np.linalg.solve(AtA + lam * (D.T @ D) + 1e-12 * np.eye(m), Aty)
+        # The normal matrix is symmetric positive definite and banded (3 off-diagonals): a banded Cholesky solve
+        # (LAPACK pbsv) is exact, cheap, and unlike a dense solve gives the same bits whatever BLAS's thread count
+        # (a Ray worker runs with OMP_NUM_THREADS=1: replays must not depend on where they were rendered).
+        N = AtA + lam * (D.T @ D) + 1e-12 * np.eye(m)
+        bands = np.zeros((4, m))
+        for k in range(4):
+            bands[3 - k, k:] = np.diagonal(N, offset=k)
+        X = solveh_banded(bands, Aty, lower=False, check_finite=False)
         spline.ctrl_p, spline.ctrl_q = X[:, :3], X[:, 3:]
         inside = (t >= t_start_ns) & (t <= t_end_ns)
         st = spline.evaluate(t[inside])
