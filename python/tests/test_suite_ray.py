@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import secrets
 import signal
 import socket
 import subprocess
@@ -34,7 +35,9 @@ def ray_head():
     ray_bin = Path(sys.executable).with_name("ray")
     temp = tempfile.mkdtemp(prefix="lnr", dir="/tmp")  # short: Ray's socket paths must stay under 107 characters
     port = _free_port()
-    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
+    # A token of its own (Ray's token authentication), given to the head and to every driver through the
+    # environment: nothing is read from or written to ~/.ray.
+    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
     proc = subprocess.Popen([str(ray_bin), "start", "--head", "--block", "--node-ip-address", "127.0.0.1",
                              "--port", str(port), "--num-cpus", "2", "--include-dashboard", "false",
                              "--temp-dir", temp, "--disable-usage-stats"],
@@ -50,7 +53,7 @@ def ray_head():
         time.sleep(0.5)
     else:
         pytest.fail("the Ray head did not come up within 120 s")
-    yield address
+    yield address, env
     os.killpg(proc.pid, signal.SIGTERM)
     try:
         proc.wait(timeout=60)
@@ -79,10 +82,11 @@ def test_ray_suite_gives_the_serial_rows(tmp_path, ray_head):
                             capture_output=True, text=True, timeout=900)
     assert serial.returncode == 0, serial.stderr
     # The Ray run renders its own replay (another cache) so that both jobs, render and run, go through Ray.
-    on_ray = subprocess.run(LINNET + common[:-1] + [str(tmp_path / "cache_ray"), "--ray-address", ray_head,
+    address, env = ray_head
+    on_ray = subprocess.run(LINNET + common[:-1] + [str(tmp_path / "cache_ray"), "--ray-address", address,
                                                     "--runs", str(tmp_path / "runs_ray"),
                                                     "--report", str(tmp_path / "report")],
-                            capture_output=True, text=True, timeout=900)
+                            capture_output=True, text=True, timeout=900, env=env)
     assert on_ray.returncode == 0, on_ray.stderr
     assert "executor ray" in on_ray.stderr and "2 jobs" in on_ray.stderr
     rows_serial = json.loads((tmp_path / "serial.json").read_text())
