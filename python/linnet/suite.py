@@ -87,8 +87,12 @@ def render_job(spec: ReplaySpec, cache: str) -> dict:
         return {"dataset": str(folder), "summary": json.loads(done.read_text()), "rendered": False}
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = folder.with_name(f"{folder.name}.tmp-{uuid.uuid4().hex[:8]}")
-    summary = simulate(spec.gt_file, spec.scene, tmp, seed=spec.seed, start=spec.start, duration=spec.duration,
-                       **dict(spec.settings))
+    try:
+        summary = simulate(spec.gt_file, spec.scene, tmp, seed=spec.seed, start=spec.start, duration=spec.duration,
+                           **dict(spec.settings))
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)  # no half replay left behind
+        raise
     summary["out_dir"] = str(folder)
     (tmp / "replay.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
     if folder.exists():  # another job finished the same replay meanwhile: keep theirs

@@ -84,3 +84,12 @@ def test_markdown_table_formats_missing_values():
     text = markdown_table([{"sequence": "a", "scene": "room", "system": "x", "ape_rmse_m": None,
                             "real_time_factor": 0.5, "init_time_s": None, "failures": None, "error": "boom"}])
     assert "| a | room | x | — | 0.50 | — | — (boom) |" in text
+
+
+def test_bench_suite_names_a_bad_trajectory_and_leaves_no_half_replay(tmp_path):
+    bad = tmp_path / "bad.txt"
+    bad.write_text("0 0 0\n")
+    r = _run("bench", "suite", "--sequences", str(bad), "--scenes", "room", "--executor", "serial",
+             "--cache", str(tmp_path / "cache"), "--runs", str(tmp_path / "runs"))
+    assert r.returncode == 1 and "bad.txt" in r.stderr.splitlines()[-1], r.stderr
+    assert not any((tmp_path / "cache").iterdir())

@@ -148,7 +148,15 @@ def COMMAND(sequences, scenes, systems, realism, duration, start, seed, cache, r
             bar.update(task, advance=1, description=f"done: {label}")
             echo(f"[suite] done: {label}")
 
-        rows = runner.run(suite, progress)
+        try:
+            rows = runner.run(suite, progress)
+        except Exception as e:  # noqa: BLE001 - a bad trajectory file is a user error, also inside a Ray task
+            from linnet.sim.trajectory import InputError
+
+            cause = getattr(e, "cause", e)
+            if isinstance(cause, InputError):
+                raise click.ClickException(str(cause)) from None
+            raise
     wall = time.perf_counter() - t0
     table = markdown_table(rows)
     click.echo(table)
