@@ -16,6 +16,7 @@ EuRoC csv, white space with 8 fields means TUM.
 from __future__ import annotations
 
 import copy
+import json
 import math
 from dataclasses import dataclass, field
 from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation
@@ -155,6 +156,15 @@ def read_text_file(path: Path, what: str, name_if_missing: bool = False) -> str:
         raise InputError(f"{path}: not a text file ({e.reason} at byte {e.start})") from None
     except OSError as e:
         raise InputError(f"{path}: cannot read ({e.strerror})") from None
+
+
+def write_json_file(path: Path, data) -> None:
+    """Write `data` as indented JSON (creating the parent folder); InputError naming the file if it cannot."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    except OSError as e:
+        raise InputError(f"{path}: cannot write JSON ({e.strerror})") from None
 
 
 def _data_lines(path: Path):

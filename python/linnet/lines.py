@@ -561,7 +561,8 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
     the same true line), track lengths, timings. With gyro_prediction the tracker gets each frame's rotation from
     the replay's simulated (noisy, biased) gyroscope, as in the pipeline."""
     from linnet import _linnet
-    from linnet.sim.simulator import _pose, prepare
+    from linnet.sim.rotations import pose_matrix
+    from linnet.sim.simulator import prepare
 
     rp = prepare(trajectory, scene, seed=seed, start=start, duration=duration)
     native = rp.scene.to_native()
@@ -583,7 +584,7 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
     per_frame = {"lines": [], "stereo": [], "total_ms": [], "cpu_total_ms": [], "cpu_left_ms": []}
     n = len(rp.cam_t)
     for k, t in enumerate(rp.cam_t):
-        T_W_B = _pose(state.R[k], state.p[k])
+        T_W_B = pose_matrix(state.R[k], state.p[k])
         T_W_C = [T_W_B @ c.T_B_C for c in cams]
         imgs = [r.render(native, T, 1.0, (seed * 1_000_003 + k) * 2 + c) for c, (r, T) in
                 enumerate(zip(renderers, T_W_C))]

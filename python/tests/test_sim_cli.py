@@ -7,7 +7,6 @@ import sys
 
 import pytest
 
-from linnet.sim import builtin_loop
 from linnet.commands.bench_suite import markdown_table, parse_systems
 
 LINNET = [sys.executable, "-m", "linnet.cli"]
@@ -54,14 +53,10 @@ def test_parse_systems():
         parse_systems(("nonsense",))
 
 
-def test_bench_suite_runs_a_system_template_on_a_cached_replay(tmp_path):
+def test_bench_suite_runs_a_system_template_on_a_cached_replay(tmp_path, short_loop_tum):
     # A 4 s trajectory file (TUM) and a stand-in "system" that writes the ground truth as its estimate, plus one
     # that fails: the table must show APE 0 for the first and the failure for the second.
-    s = builtin_loop(duration=4.0)
-    tum = tmp_path / "short.txt"
-    rows = [f"{t * 1e-9:.6f} {p[0]:.6f} {p[1]:.6f} {p[2]:.6f} {q[1]:.9f} {q[2]:.9f} {q[3]:.9f} {q[0]:.9f}"
-            for t, p, q in zip(s.t_ns, s.p, s.q)]
-    tum.write_text("# t x y z qx qy qz qw\n" + "\n".join(rows) + "\n")
+    tum = short_loop_tum
     oracle = ("oracle=awk -F, '!/^#/ {{printf \"%.9f %s %s %s %s %s %s %s\\n\", $1/1e9, $2, $3, $4, $6, $7, $8, $5}}' "
               "{dataset}/mav0/state_groundtruth_estimate0/data.csv > {tum}")
     args = ["bench", "suite", "--sequences", str(tum), "--scenes", "lowtex", "--duration", "1.5", "--start", "2",

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import pytest
 
-from linnet.sim import builtin_loop
 from linnet.suite import reproducible
 
 LINNET = [sys.executable, "-m", "linnet.cli"]
@@ -62,17 +61,8 @@ def ray_head():
     shutil.rmtree(temp, ignore_errors=True)
 
 
-def _trajectory(tmp_path: Path) -> Path:
-    s = builtin_loop(duration=4.0)
-    tum = tmp_path / "short.txt"
-    rows = [f"{t * 1e-9:.6f} {p[0]:.6f} {p[1]:.6f} {p[2]:.6f} {q[1]:.9f} {q[2]:.9f} {q[3]:.9f} {q[0]:.9f}"
-            for t, p, q in zip(s.t_ns, s.p, s.q)]
-    tum.write_text("# t x y z qx qy qz qw\n" + "\n".join(rows) + "\n")
-    return tum
-
-
-def test_ray_suite_gives_the_serial_rows(tmp_path, ray_head):
-    tum = _trajectory(tmp_path)
+def test_ray_suite_gives_the_serial_rows(tmp_path, ray_head, short_loop_tum):
+    tum = short_loop_tum
     oracle = ("oracle=awk -F, '!/^#/ {{printf \"%.9f %s %s %s %s %s %s %s\\n\", $1/1e9, $2+0.001*NR%3, $3, $4, $6, "
               "$7, $8, $5}}' {dataset}/mav0/state_groundtruth_estimate0/data.csv > {tum}")
     common = ["bench", "suite", "--sequences", str(tum), "--scenes", "lowtex", "--duration", "1.5", "--start", "2",

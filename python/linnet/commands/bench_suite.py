@@ -11,15 +11,14 @@ reported. Jobs run on Ray when it is installed (see linnet.suite), serially othe
 """
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 import click
 
+from linnet.evaluation import InputError as EvalInputError, write_json_file
 from linnet.sim.realism import REALISM_LEVELS, REALISM_PRESETS
-from linnet.suite import (ReplaySpec, RunSpec, Suite, driver_thread_env, make_executor, markdown_table,  # noqa: F401
-                          plot_rows, reproducible)
+from linnet.suite import ReplaySpec, RunSpec, Suite, driver_thread_env, make_executor, markdown_table, plot_rows
 
 DEFAULT_SEQUENCES = ("V1_02_medium", "MH_01_easy", "V2_01_easy")
 
@@ -161,11 +160,15 @@ def COMMAND(sequences, scenes, systems, realism, duration, start, seed, cache, r
     table = markdown_table(rows)
     click.echo(table)
     echo(f"[suite] {total} jobs in {wall:.1f} s wall ({runner.name})")
-    if json_out:
-        json_out.write_text(json.dumps(rows, indent=2) + "\n")
+    try:
+        if json_out:
+            write_json_file(json_out, rows)
+        if report_dir:
+            report = {"realism": realism, "executor": runner.name, "wall_s": wall, "rows": rows}
+            write_json_file(report_dir / "suite.json", report)
+    except EvalInputError as e:
+        raise click.ClickException(str(e)) from None
     if report_dir:
-        report = {"realism": realism, "executor": runner.name, "wall_s": wall, "rows": rows}
         (report_dir / "suite.md").write_text(table + "\n")
-        (report_dir / "suite.json").write_text(json.dumps(report, indent=2) + "\n")
         plot_rows(rows, report_dir / "suite.png")
         echo(f"[suite] wrote {report_dir}/suite.md, suite.json, suite.png")

@@ -1,7 +1,6 @@
 """``linnet eval EST GT``: APE and RPE of a trajectory against ground truth, with optional plots and JSON."""
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -130,10 +129,9 @@ def eval_command(est, gt, align, t_max_diff, pose_relation, rpe_delta, rpe_relat
         click.echo(f"plots: {', '.join(str(p) for p in written)}")
     if json_file is not None:
         try:
-            json_file.parent.mkdir(parents=True, exist_ok=True)
-            json_file.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-        except OSError as e:
-            raise EvalInputError(f"{json_file}: cannot write JSON ({e.strerror})") from None
+            ev.write_json_file(json_file, report)
+        except ev.InputError as e:
+            raise EvalInputError(str(e)) from None
 
 
 COMMAND = eval_command

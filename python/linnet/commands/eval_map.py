@@ -1,7 +1,6 @@
 """``linnet eval-map RUN_DIR DATASET``: the run's 3D line map against the simulator's true scene lines."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
@@ -67,7 +66,6 @@ def COMMAND(run_dir, dataset, min_observations, within_m, json_file):
         click.echo(f"note: no map line has {min_observations} or more observations")
     if json_file is not None:
         try:
-            json_file.parent.mkdir(parents=True, exist_ok=True)
-            json_file.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-        except OSError as e:
-            raise EvalMapInputError(f"{json_file}: cannot write JSON ({e.strerror})") from None
+            ev.write_json_file(json_file, report)
+        except ev.InputError as e:
+            raise EvalMapInputError(str(e)) from None

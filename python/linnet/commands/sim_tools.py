@@ -2,7 +2,6 @@
 truth; ``check-imu`` compares a replay's IMU error spectra with a real log's (see linnet.sim.imu_model)."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
@@ -112,7 +111,12 @@ def check_imu_command(imu_csv, gt_csv, dataset, max_db, max_std, plot_file, json
                       f"{100 * max_std:.0f} %): {'ok' if std_ok else 'OUT'}")
     report["pass"] = ok
     if json_file:
-        Path(json_file).write_text(json.dumps(report, indent=2), encoding="utf-8")
+        from linnet.evaluation import InputError as WriteError, write_json_file
+
+        try:
+            write_json_file(Path(json_file), report)
+        except WriteError as e:
+            _fail(e)
     if plot_file:
         from linnet.plots import plot_imu_spectra
 

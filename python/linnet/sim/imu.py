@@ -75,8 +75,9 @@ class ImuNoise:
         if isinstance(data, dict) and data.get("kind") == MODEL_KIND:
             return cls.measured(MeasuredImuModel.from_dict(data, str(path)))
         noise = cls()
+        known = noise.numbers()
         for key, value in data.items():
-            if key in noise.numbers():
+            if key in known:
                 if not isinstance(value, (int, float)) or value < 0:
                     raise InputError(f"{path}: key '{key}' must be a non-negative number, got {value!r}")
                 setattr(noise, key, float(value))

@@ -146,15 +146,13 @@ def flight_mask(t_ns: np.ndarray, state: SplineState, rule: PhaseRule) -> np.nda
         return flying
     dt = float(np.median(np.diff(t_ns))) * 1e-9
     min_run = max(1, int(round(rule.min_run_s / max(dt, 1e-9))))
-    # Merge short runs, shortest first, until every run is long enough (or only one is left).
+    # Merge short runs, shortest first (the earliest of equals), until every run is long enough or one is left.
     while True:
-        starts = np.flatnonzero(np.r_[True, flying[1:] != flying[:-1]])
-        ends = np.r_[starts[1:], flying.size]
-        lengths = ends - starts
-        if starts.size <= 1 or lengths.min() >= min_run:
+        runs = _runs(flying)
+        start, end, value = min(runs, key=lambda r: r[1] - r[0])
+        if len(runs) <= 1 or end - start >= min_run:
             return flying
-        k = int(np.argmin(lengths))
-        flying[starts[k]:ends[k]] = not flying[starts[k]]
+        flying[start:end] = not value
 
 
 def _runs(mask: np.ndarray):

@@ -29,6 +29,7 @@ from typing import Optional
 
 import numpy as np
 
+from linnet.sim.rotations import exp_so3, pose_matrix
 from linnet.sim.trajectory import InputError
 
 CALIB_ERRORS = ("none", "typical")
@@ -56,21 +57,6 @@ class CalibrationErrorAmounts:
     radial_corner_px: float = 0.3             # radial distortion error at the image corners, pixels
     radial_half_px: float = 0.1               # radial distortion error half-way to the corners, pixels
     tangential: float = 5e-5                  # p1, p2
-
-
-def _rotation(rotvec: np.ndarray) -> np.ndarray:
-    angle = float(np.linalg.norm(rotvec))
-    if angle < 1e-15:
-        return np.eye(3)
-    k = rotvec / angle
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
-
-
-def _transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, t
-    return T
 
 
 def _corner_radius(cam) -> float:
@@ -101,9 +87,9 @@ def perturb_cameras(cameras: list, seed: int, amounts: Optional[CalibrationError
     rng = np.random.default_rng([int(seed), 0xCA11B])
     deg = math.pi / 180.0
     # A common error of the rig against the IMU (applied on the body side) and a relative error of cam1 (camera side).
-    common = _transform(_rotation(rng.standard_normal(3) * a.extrinsic_rotation_deg * deg),
+    common = pose_matrix(exp_so3(rng.standard_normal(3) * a.extrinsic_rotation_deg * deg),
                         rng.standard_normal(3) * a.extrinsic_translation_m)
-    relative = _transform(_rotation(rng.standard_normal(3) * a.stereo_rotation_deg * deg),
+    relative = pose_matrix(exp_so3(rng.standard_normal(3) * a.stereo_rotation_deg * deg),
                           rng.standard_normal(3) * a.stereo_translation_m)
     common_int = np.concatenate([rng.standard_normal(2) * a.focal_px, rng.standard_normal(2) * a.principal_point_px])
     radial_px = rng.standard_normal(2) * [a.radial_corner_px, a.radial_half_px]

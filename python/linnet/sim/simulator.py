@@ -15,6 +15,7 @@ from linnet.sim import writer
 from linnet.sim.imu import IMU_PERIOD_NS, ImuData, ImuNoise, interpolate_biases, load_real_imu, synthesize
 from linnet.sim.realism import CALIB_ERRORS, camera_stamps, perturb_cameras
 from linnet.sim.rig import EUROC_CAM0, EUROC_CAM1
+from linnet.sim.rotations import pose_matrix
 from linnet.sim.scene import SCENES, SceneSpec, build_scene
 from linnet.sim.trajectory import (InputError, SplineState, SplineTrajectory, TrajectorySamples,
                                    load_trajectory)
@@ -52,12 +53,6 @@ def _exposure_gains(t_s: np.ndarray, rng: np.random.Generator, enabled: bool) ->
             x = np.clip((tt - tj - 0.03 * c) / 0.25, 0, 1)
             log_g[:, c] += aj * x * x * (3 - 2 * x)
     return np.clip(np.exp(log_g), 0.4, 2.0)
-
-
-def _pose(R: np.ndarray, p: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, p
-    return T
 
 
 @dataclass
@@ -160,7 +155,7 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
     img_dirs = [writer.write_camera(mav0, cam, stamps) for cam in written]
     t0_wall, t0_cpu = time.perf_counter(), time.process_time()
     for k, t in enumerate(cam_t):
-        T_W_B = _pose(cam_state.R[k], cam_state.p[k])
+        T_W_B = pose_matrix(cam_state.R[k], cam_state.p[k])
         if blur:
             sub_t = t + np.round((np.arange(BLUR_SUBFRAMES) / (BLUR_SUBFRAMES - 1) - 0.5) * EXPOSURE_S * 1e9
                                  ).astype(np.int64)
@@ -168,7 +163,7 @@ def simulate(trajectory: str, scene: str, out_dir, seed: int = 0, start: float =
         for c, (cam, r) in enumerate(zip(cams, renderers)):
             noise_seed = (int(seed) * 1_000_003 + k) * 2 + c
             if blur:
-                poses = [_pose(sub.R[j], sub.p[j]) @ cam.T_B_C for j in range(BLUR_SUBFRAMES)]
+                poses = [pose_matrix(sub.R[j], sub.p[j]) @ cam.T_B_C for j in range(BLUR_SUBFRAMES)]
                 img = r.expose(r.render_radiance_blurred(native_scene, poses), float(gains[k, c]), noise_seed)
             else:
                 img = r.render(native_scene, T_W_B @ cam.T_B_C, float(gains[k, c]), noise_seed)

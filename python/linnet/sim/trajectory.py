@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
-from scipy.linalg import solveh_banded
 
 from linnet.sim.rotations import exp_so3, matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 
@@ -241,6 +240,8 @@ class SplineTrajectory:
         # The normal matrix is symmetric positive definite and banded (3 off-diagonals): a banded Cholesky solve
         # (LAPACK pbsv) is exact, cheap, and unlike a dense solve gives the same bits whatever BLAS's thread count
         # (a Ray worker runs with OMP_NUM_THREADS=1: replays must not depend on where they were rendered).
+        from scipy.linalg import solveh_banded  # here, not at module level: scipy.linalg costs ~0.13 s to import
+
         N = AtA + lam * (D.T @ D) + 1e-12 * np.eye(m)
         bands = np.zeros((4, m))
         for k in range(4):
