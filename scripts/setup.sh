@@ -10,7 +10,7 @@ if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 APT_PACKAGES=(build-essential cmake ninja-build ccache pkg-config git
   python3 python3-venv python3-dev
   libeigen3-dev libceres-dev libopencv-dev libopencv-contrib-dev libyaml-cpp-dev
-  libgtest-dev libgmock-dev libbenchmark-dev)
+  libgtest-dev libgmock-dev libbenchmark-dev valgrind)
 
 missing=()
 for p in "${APT_PACKAGES[@]}"; do

@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional, Union
+from typing import Callable, List, Optional, Sequence, Union
 
 from linnet import _linnet
 
@@ -20,14 +21,44 @@ def find_ground_truth(dataset: PathLike) -> Optional[Path]:
     return None
 
 
-def load_config(dataset: PathLike, config_file: Optional[PathLike] = None,
-                overrides: Optional[str] = None) -> _linnet.Config:
-    """Defaults + the dataset's calibration (sensor.yaml) + the keys of `config_file` + YAML `overrides` text."""
-    cfg = _linnet.Config.for_euroc(str(dataset))
+@dataclass
+class Calibration:
+    """Calibration files to use instead of a dataset's sensor.yaml files: a Kalibr camchain (camchain-imucam.yaml;
+    one camera: monocular) and a Kalibr imu.yaml (noise densities and random walks). rate_hz: camera frame rate, Hz,
+    for sources that do not give it (camchains do not hold it)."""
+
+    camchain: str = ""
+    imu_yaml: str = ""
+    rate_hz: float = 20.0
+
+
+def load_config(dataset: Optional[PathLike], config_file: Optional[PathLike] = None,
+                overrides: Union[str, Sequence[str], None] = None, calib: Optional[Calibration] = None,
+                base: Optional[_linnet.Config] = None) -> _linnet.Config:
+    """Defaults (or `base`) + the calibration + the keys of `config_file` + `overrides`.
+
+    The calibration is the dataset's sensor.yaml files, or the Kalibr files of `calib` (then `dataset` may be None,
+    for a source without calibration files such as a ROS bag). `overrides` is YAML text, or "KEY=VALUE" strings
+    (dotted keys, YAML values) applied in order; errors name the offending "--set KEY=VALUE".
+    """
+    calib = calib or Calibration()
+    if dataset is not None:
+        cfg = _linnet.Config.for_euroc(str(dataset), base, camchain=calib.camchain, imu_yaml=calib.imu_yaml)
+    elif calib.camchain:
+        cfg = _linnet.Config.for_kalibr(calib.camchain, calib.imu_yaml, calib.rate_hz, base)
+    else:
+        raise _linnet.UsageError("no calibration: give a EuRoC folder or a Kalibr camchain (--calib)")
     if config_file is not None:
         cfg.merge(str(config_file))
-    if overrides:
-        cfg.merge_yaml(overrides, "<overrides>")
+    if isinstance(overrides, str):
+        if overrides:
+            cfg.merge_yaml(overrides, "<overrides>")
+    else:
+        for item in overrides or ():
+            key, sep, value = item.partition("=")
+            if not sep or not key.strip():
+                raise _linnet.UsageError(f"--set {item}: expected KEY=VALUE, e.g. pipeline.use_lines=false")
+            cfg.set(key.strip(), value, source=f"--set {item}")
     return cfg
 
 
@@ -52,10 +83,16 @@ def run_dataset(dataset: PathLike, config: Optional[_linnet.Config] = None, *, m
     return result
 
 
-def summarize(run: "_linnet.RunSummary", dataset: PathLike) -> dict:
-    """summary.json contents; the APE (SE3 alignment, position) when the dataset has ground truth."""
+def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
+    """summary.json contents: counts, timings, the run's warnings, its status ("ok" or "failed", with the reasons in
+    "problems", see diagnose), and the APE (SE3 alignment, position) when the dataset has ground truth."""
+    status, problems = diagnose(run)
     summary = {
-        "dataset": str(dataset),
+        "dataset": str(dataset) if dataset is not None else None,
+        "status": status,
+        "problems": problems,
+        "warnings": list(run.warnings),
+        "stereo": run.stereo,
         "frames": run.frames,
         "processed_frames": run.processed_frames,
         "frames_with_pose": run.frames_with_pose,
@@ -68,8 +105,9 @@ def summarize(run: "_linnet.RunSummary", dataset: PathLike) -> dict:
         "cpu_time_s": run.cpu_time_s,
         "cpu_real_time_factor": run.cpu_real_time_factor,
         "image_load_cpu_s": run.image_load_cpu_s,
+        "imu_samples": run.imu_samples,
     }
-    gt = find_ground_truth(dataset)
+    gt = find_ground_truth(dataset) if dataset is not None else None
     traj = run.trajectory(True)
     if gt is not None and len(traj["t_ns"]) >= 3:
         from linnet import evaluation
@@ -86,6 +124,51 @@ def summarize(run: "_linnet.RunSummary", dataset: PathLike) -> dict:
         except Exception as e:  # report, don't lose the run
             summary["ape_error"] = str(e)
     return summary
+
+
+#: A run fails when fewer than this fraction of its processed frames have a pose.
+MIN_POSE_FRACTION = 0.5
+#: Median points tracked per frame below which the images are the likely cause of a failure.
+FEW_POINTS = 15
+#: Median stereo matches per frame below which cam1's calibration is the likely cause.
+FEW_STEREO = 10
+
+
+def diagnose(run: "_linnet.RunSummary") -> tuple:
+    """("ok", []) or ("failed", reasons): a run fails when it never initialised or fewer than MIN_POSE_FRACTION of
+    its processed frames have a pose. The reasons are judged from what the front-end delivered."""
+    results = run.results()
+    if run.frames == 0:
+        return "failed", ["no frame was run"]
+    if run.processed_frames == 0:
+        return "failed", [f"none of the {run.frames} frames was processed ({run.dropped_frames} dropped): the IMU "
+                          "samples do not cover the image time stamps (same clock, both in ns?)"]
+    if run.frames_with_pose >= MIN_POSE_FRACTION * run.processed_frames:
+        return "ok", []
+    points = _median([r.tracked_points for r in results])
+    stereo = _median([r.stereo_points for r in results])
+    head = ("never initialised" if run.frames_with_pose == 0 else
+            f"only {run.frames_with_pose} of {run.processed_frames} frames have a pose")
+    if not run.stereo:
+        why = "monocular + IMU initialisation is not available yet: run a stereo dataset (cam0 and cam1)"
+    elif points < FEW_POINTS:
+        why = (f"too few points tracked (median {points:.0f} per frame): black, blank or badly exposed images, "
+               "or images that do not match the calibration's resolution")
+    elif stereo < FEW_STEREO:
+        why = (f"too few stereo matches (median {stereo:.0f} of {points:.0f} tracked points): check cam1's "
+               "calibration (intrinsics, distortion, the cam0-cam1 extrinsics)")
+    else:
+        why = (f"points are tracked (median {points:.0f}, {stereo:.0f} in stereo) but the estimator did not "
+               "initialise or keep track: static data, or an IMU that does not agree with the images (time "
+               "stamps, units, camera-IMU extrinsics)")
+    return "failed", [f"{head}: {why}"]
+
+
+def _median(values: List[float]) -> float:
+    if not values:
+        return 0.0
+    v = sorted(values)
+    return float(v[len(v) // 2]) if len(v) % 2 else 0.5 * (v[len(v) // 2 - 1] + v[len(v) // 2])
 
 
 def write_outputs(run: "_linnet.RunSummary", summary: dict, out: PathLike) -> None:

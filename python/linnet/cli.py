@@ -1,11 +1,13 @@
 """Command-line interface: ``linnet --help``.
 
 Commands are discovered from the ``linnet.commands`` package: a module defining ``COMMAND`` becomes a subcommand;
-``bench_*`` modules become subcommands of ``linnet bench``. Usage errors print one line on stderr and exit with 2.
+``bench_*`` modules become subcommands of ``linnet bench``. Every error is one line on stderr (no traceback; set
+LINNET_DEBUG=1 to see one), with the exit codes of EXIT_CODES.
 """
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -26,7 +28,20 @@ def _discover(prefix_filter):
     return found
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+#: Exit codes of every command (shown by ``linnet --help``).
+EXIT_CODES = {
+    0: "success",
+    1: "bad input data or a failed step (the message names the file, line or key)",
+    2: "usage error (an unknown option, a bad option value, a path that cannot be written)",
+    3: "linnet run: the run went through but did not track (outputs written, reasons printed)",
+    4: "internal error (a bug: please report it with LINNET_DEBUG=1's traceback)",
+    130: "interrupted",
+}
+
+_EPILOG = "\b\nExit codes:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]}, epilog=_EPILOG)
 @click.version_option(package_name="linnet")
 def cli():
     """Linnet: point-and-line visual-inertial SLAM (stereo/mono + IMU)."""
@@ -41,6 +56,15 @@ for _cmd in _discover(lambda name: not name.startswith("bench_")):
     cli.add_command(_cmd)
 for _cmd in _discover(lambda name: name.startswith("bench_")):
     bench.add_command(_cmd)
+
+
+def _is_data_error(e: BaseException) -> bool:
+    """Linnet's own errors: the core's (linnet.Error and subclasses) and the Python package's InputError / BagError."""
+    from linnet.fileio import InputError
+
+    if isinstance(e, InputError) or type(e).__name__ == "BagError":
+        return True
+    return any(c.__module__ == "linnet._linnet" and c.__name__ == "Error" for c in type(e).__mro__)
 
 
 def main(argv=None):
@@ -61,6 +85,14 @@ def main(argv=None):
         sys.exit(e.exit_code)
     except KeyboardInterrupt:
         sys.exit(130)
+    except Exception as e:  # noqa: BLE001 - the last line of defence: one line, never a traceback
+        if os.environ.get("LINNET_DEBUG"):
+            raise
+        if _is_data_error(e):
+            click.echo(f"linnet: error: {e}", err=True)
+            sys.exit(1)
+        click.echo(f"linnet: internal error: {type(e).__name__}: {e} (LINNET_DEBUG=1 shows the traceback)", err=True)
+        sys.exit(4)
     sys.exit(rv if isinstance(rv, int) else 0)
 
 

@@ -7,16 +7,17 @@ between Linnet's conventions and evo's, and packs the results into small datacla
 
 Conventions (DESIGN A3): time stamps int64 nanoseconds, positions in metres, Hamilton quaternions stored w, x, y, z.
 File formats:
-  * TUM: ``t x y z qx qy qz qw`` separated by white space, ``t`` in seconds, quaternion order x, y, z, w.
+  * TUM: ``t x y z qx qy qz qw`` separated by white space, ``t`` in seconds, quaternion order x, y, z, w. Files whose
+    time stamps are in ms, us or ns are read by the magnitude of the first one (linnet.timeunits).
   * EuRoC csv: ``t_ns, px, py, pz, qw, qx, qy, qz`` (8 columns) optionally followed by velocity and gyroscope /
-    accelerometer biases (17 columns), comma separated, quaternion order w, x, y, z.
+    accelerometer biases (17 columns), comma separated, quaternion order w, x, y, z. A time with a decimal point is
+    read by its magnitude, like TUM's.
 Lines starting with ``#`` and blank lines are ignored. The format is detected from the first data line: commas mean
 EuRoC csv, white space with 8 fields means TUM.
 """
 from __future__ import annotations
 
 import copy
-import json
 import math
 from dataclasses import dataclass, field
 from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation
@@ -24,6 +25,9 @@ from pathlib import Path
 from typing import Union
 
 import numpy as np
+
+from linnet import timeunits
+from linnet.fileio import InputError, read_text_file, write_json_file
 
 __all__ = [
     "InputError",
@@ -38,10 +42,6 @@ __all__ = [
     "POSE_RELATIONS",
     "ALIGNMENTS",
 ]
-
-
-class InputError(ValueError):
-    """A trajectory file or array that cannot be evaluated; the message names the file and line where it can."""
 
 
 #: Accepted ``pose_relation`` names (the evo command line's names) -> evo's PoseRelation member name.
@@ -143,30 +143,6 @@ def trajectory_from_arrays(t_ns, positions, quaternions_wxyz, name: str = "<arra
 # ------------------------------------------------------------------------------------------------------------- files
 
 
-def read_text_file(path: Path, what: str, name_if_missing: bool = False) -> str:
-    """The text of a UTF-8 file; InputError naming the file when it is missing (with `what` if name_if_missing), a
-    directory ("expected <what>"), not text or unreadable."""
-    try:
-        return path.read_text(encoding="utf-8", errors="strict")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file" + (f" ({what})" if name_if_missing else "")) from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, expected {what}") from None
-    except UnicodeDecodeError as e:
-        raise InputError(f"{path}: not a text file ({e.reason} at byte {e.start})") from None
-    except OSError as e:
-        raise InputError(f"{path}: cannot read ({e.strerror})") from None
-
-
-def write_json_file(path: Path, data) -> None:
-    """Write `data` as indented JSON (creating the parent folder); InputError naming the file if it cannot."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    except OSError as e:
-        raise InputError(f"{path}: cannot write JSON ({e.strerror})") from None
-
-
 def _data_lines(path: Path):
     """Yield (line number, stripped text) for every non-comment, non-blank line."""
     text = read_text_file(path, "a trajectory file")
@@ -210,6 +186,19 @@ def _parse_time(path: Path, number: int, token: str, scale: int) -> int:
     return int(value.to_integral_value(rounding=ROUND_HALF_EVEN))
 
 
+def _time_scale(path: Path, number: int, line: str, fmt: str) -> int:
+    """ns per time unit of the file, from its first data line: TUM by the magnitude of the first time stamp (s, ms,
+    us or ns, see linnet.timeunits); EuRoC csv in integer ns unless the time has a decimal point (then by magnitude)."""
+    token = (line.split(",")[0] if fmt == "euroc" else line.split()[0]).strip()
+    if fmt == "euroc" and "." not in token and "e" not in token.lower():
+        return 1
+    try:
+        first = float(token)
+    except ValueError:
+        raise InputError(f"{path}:{number}: bad time stamp '{token}'") from None
+    return timeunits.unit_of(first)[1]
+
+
 def _parse_floats(path: Path, number: int, tokens) -> list:
     try:
         values = [float(tok) for tok in tokens]
@@ -237,9 +226,12 @@ def load_trajectory(path: PathLike, fmt: str = "auto") -> Trajectory:
     t_ns, pos, quat = [], [], []
     columns = None
     prev = None
+    scale = None  # ns per file time unit, from the first line (linnet.timeunits)
     for number, line in _data_lines(path):
         if fmt == "auto":
             fmt = _format_of_line(path, number, line)
+        if scale is None:
+            scale = _time_scale(path, number, line, fmt)
         if fmt == "euroc":
             tokens = [tok.strip() for tok in line.split(",")]
             if columns is None:
@@ -249,14 +241,14 @@ def load_trajectory(path: PathLike, fmt: str = "auto") -> Trajectory:
                     f"{path}:{number}: {len(tokens)} columns, expected {columns if columns in _EUROC_COLUMNS else 8}"
                     " (EuRoC csv: t_ns, px, py, pz, qw, qx, qy, qz[, v, b_w, b_a])"
                 )
-            t = _parse_time(path, number, tokens[0], 1)
+            t = _parse_time(path, number, tokens[0], scale)
             v = _parse_floats(path, number, tokens[1:8])
             p, q = v[0:3], v[3:7]  # file order w, x, y, z
         else:
             tokens = line.split()
             if len(tokens) != _TUM_COLUMNS:
                 raise InputError(f"{path}:{number}: {len(tokens)} fields, expected 8 (TUM: t x y z qx qy qz qw)")
-            t = _parse_time(path, number, tokens[0], 1_000_000_000)
+            t = _parse_time(path, number, tokens[0], scale)
             v = _parse_floats(path, number, tokens[1:8])
             p, q = v[0:3], [v[6], v[3], v[4], v[5]]  # file order x, y, z, w -> w, x, y, z
         if math.sqrt(sum(c * c for c in q)) < _QUAT_MIN_NORM:

@@ -100,26 +100,27 @@ def test_rpe_failure_is_reported_not_fatal(small_pair, tmp_path):
     assert report["rpe"] is None and "delta 50" in report["rpe_error"]
 
 
-def _assert_one_line_error(code, stdout, stderr, *fragments):
-    assert code == 2, (stdout, stderr)
+def _assert_one_line_error(code, stdout, stderr, *fragments, expected=1):
+    """One line on stderr naming the problem; exit code 1 for bad data, 2 for a usage error."""
+    assert code == expected, (stdout, stderr)
     lines = stderr.strip().splitlines()
     assert len(lines) == 1, stderr
     for fragment in fragments:
         assert fragment in lines[0], lines[0]
 
 
-def test_no_overlapping_time_stamps_exit_2_one_line(small_pair, tmp_path):
+def test_no_overlapping_time_stamps_exit_1_one_line(small_pair, tmp_path):
     est, _ = small_pair
     late = write(tmp_path / "late.txt", "5000.0 0 0 0 0 0 0 1\n5000.1 1 0 0 0 0 0 1\n5000.2 2 0 0 0 0 0 1\n")
     _assert_one_line_error(*run_linnet("eval", est, late), "no time stamps", "late.txt", "within 0.01 s")
 
 
 def test_missing_file_exit_2_one_line(small_pair, tmp_path):
-    _, gt = small_pair
-    _assert_one_line_error(*run_linnet("eval", tmp_path / "missing.txt", gt), "missing.txt")
+    _, gt = small_pair  # a path argument that does not exist is a usage error
+    _assert_one_line_error(*run_linnet("eval", tmp_path / "missing.txt", gt), "missing.txt", expected=2)
 
 
-def test_malformed_and_empty_files_exit_2_one_line(small_pair, tmp_path):
+def test_malformed_and_empty_files_exit_1_one_line(small_pair, tmp_path):
     _, gt = small_pair
     bad = write(tmp_path / "bad.txt", "1.0 0 0 0 0 0 0 1\n2.0 0 0 zero 0 0 0 1\n")
     _assert_one_line_error(*run_linnet("eval", bad, gt), "bad.txt:2:", "'zero' is not a number")
@@ -129,5 +130,5 @@ def test_malformed_and_empty_files_exit_2_one_line(small_pair, tmp_path):
 
 def test_bad_option_value_exit_2_one_line(small_pair):
     est, gt = small_pair
-    _assert_one_line_error(*run_linnet("eval", est, gt, "--align", "rigid"), "--align")
-    _assert_one_line_error(*run_linnet("eval", est, gt, "--t-max-diff", "-1"), "--t-max-diff")
+    _assert_one_line_error(*run_linnet("eval", est, gt, "--align", "rigid"), "--align", expected=2)
+    _assert_one_line_error(*run_linnet("eval", est, gt, "--t-max-diff", "-1"), "--t-max-diff", expected=2)

@@ -385,7 +385,7 @@ def test_eval_map_command_errors_are_one_line(run_and_dataset):
     run, dataset = run_and_dataset
     (dataset / "sim" / "lines.csv").unlink()
     result = CliRunner().invoke(cli(), ["eval-map", str(run), str(dataset)])
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     assert "sim/lines.csv: no such file" in result.output
     assert len(result.output.strip().splitlines()) == 1
     result = CliRunner().invoke(cli(), ["eval-map", str(run), str(dataset), "--within", "-1"])

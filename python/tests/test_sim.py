@@ -381,7 +381,7 @@ def test_bad_inputs_name_the_problem(tmp_path):
         prepare("builtin:loop", "garden")
     with pytest.raises(InputError, match="unknown built-in"):
         load_trajectory("builtin:spiral")
-    with pytest.raises(InputError, match="not found"):
+    with pytest.raises(InputError, match="no such file"):
         load_trajectory(str(tmp_path / "missing.txt"))
     bad = tmp_path / "bad.txt"
     bad.write_text("# t x y z qx qy qz qw\n1.0 0 0 0 0 0 0 1\n1.005 0 0 0 0 0 0 1\n1.01 0 0 x 0 0 0 1\n")

@@ -156,4 +156,4 @@ def test_view_help_and_bad_folder(tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
     result = CliRunner().invoke(cli, ["view", str(empty)])
-    assert result.exit_code == 2 and "no trajectory.tum" in result.output
+    assert result.exit_code == 1 and "no trajectory.tum" in result.output

@@ -239,8 +239,7 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
     d.warnings_.push_back("image time stamps shifted by " + std::to_string(shift) +
                           " ns onto the IMU clock (camchain timeshift_cam_imu)");
   }
-  if (d.frames_.front().t < d.imu_.front().t || d.frames_.back().t > d.imu_.back().t)
-    d.warnings_.push_back("images extend beyond the IMU log (first/last image outside the IMU time span)");
+  // Images outside the IMU log's span: the runner (dataset_runner.cc) names the files, the times and what it skips.
 
   const fs::path gt_dir = mav0 / "state_groundtruth_estimate0";
   if (options.load_ground_truth && fs::exists(gt_dir / "data.csv", ec)) {

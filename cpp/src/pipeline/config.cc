@@ -67,6 +67,54 @@ void Config::merge(const std::string& path) {
   validate();
 }
 
+namespace {
+
+/// A copy of `node` without source marks, so that errors about it name the source but no line.
+YAML::Node withoutMarks(const YAML::Node& node) {
+  if (node.IsScalar()) return YAML::Node(node.Scalar());
+  if (node.IsSequence()) {
+    YAML::Node out(YAML::NodeType::Sequence);
+    for (const YAML::Node& child : node) out.push_back(withoutMarks(child));
+    return out;
+  }
+  if (node.IsMap()) {
+    YAML::Node out(YAML::NodeType::Map);
+    for (auto it = node.begin(); it != node.end(); ++it) out[it->first.Scalar()] = withoutMarks(it->second);
+    return out;
+  }
+  return YAML::Node(YAML::NodeType::Null);
+}
+
+}  // namespace
+
+void Config::set(const std::string& dotted_key, const std::string& yaml_value, const std::string& source) {
+  const std::string where = source.empty() ? dotted_key : source;
+  if (dotted_key.empty() || dotted_key.front() == '.' || dotted_key.back() == '.' ||
+      dotted_key.find("..") != std::string::npos)
+    throw ConfigError(where + ": '" + dotted_key + "' is not a key like 'section.name'");
+  YAML::Node value;
+  try {
+    value = withoutMarks(YAML::Load(yaml_value));
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(where + ": invalid YAML value '" + yaml_value + "': " + e.msg);
+  }
+  std::vector<std::string> parts;
+  for (std::size_t begin = 0;;) {
+    const std::size_t dot = dotted_key.find('.', begin);
+    parts.push_back(dotted_key.substr(begin, dot - begin));
+    if (dot == std::string::npos) break;
+    begin = dot + 1;
+  }
+  YAML::Node doc = value;
+  for (auto it = parts.rbegin(); it != parts.rend(); ++it) {
+    YAML::Node parent(YAML::NodeType::Map);
+    parent[*it] = doc;
+    doc = parent;
+  }
+  loadOptions(doc, *this, where);
+  validate();
+}
+
 void Config::mergeYaml(const std::string& text, const std::string& source) {
   YAML::Node node;
   try {
@@ -83,8 +131,9 @@ void Config::save(const std::string& path) const {
   saveOptionsFile(path, copy);
 }
 
-std::string Config::toYaml() const {
+std::string Config::toYaml(bool comments) const {
   Config copy = *this;
+  if (comments) return optionsToYaml(copy, true);
   YAML::Emitter out;
   out << saveOptions(copy);
   return std::string(out.c_str()) + "\n";

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "linnet/core/cpu_clock.h"
 #include "linnet/core/error.h"
@@ -13,8 +14,10 @@
 
 namespace linnet {
 
-Config configForEuroc(const std::string& dataset_path, const Config& base) {
-  const EurocDataset ds = EurocDataset::open(dataset_path);
+Config configForEuroc(const std::string& dataset_path, const Config& base, const EurocOpenOptions& open) {
+  EurocOpenOptions o = open;
+  o.load_ground_truth = false;
+  const EurocDataset ds = EurocDataset::open(dataset_path, o);
   Config c = base;
   c.cam0 = ds.cam0();
   if (ds.cam1() != nullptr) {
@@ -28,16 +31,54 @@ Config configForEuroc(const std::string& dataset_path, const Config& base) {
   return c;
 }
 
-RunSummary runEuroc(const std::string& dataset_path, const Config& config, const RunOptions& options) {
-  const auto wall0 = std::chrono::steady_clock::now();
-  const double cpu0 = processCpuSeconds();
-  const EurocDataset ds = EurocDataset::open(dataset_path);
+Config configForKalibr(const std::string& camchain, const std::string& imu_yaml, double rate_hz, const Config& base) {
+  if (!(rate_hz > 0.0)) throw UsageError("configForKalibr: rate_hz must be > 0");
+  const KalibrCamchain chain = readKalibrCamchain(camchain);
+  Config c = base;
+  c.cam0 = chain.cameras.at(0);
+  c.cam0.rate_hz = rate_hz;
+  c.stereo = chain.cameras.size() >= 2;
+  if (c.stereo) {
+    c.cam1 = chain.cameras[1];
+    c.cam1.rate_hz = rate_hz;
+  }
+  if (!imu_yaml.empty()) {
+    c.imu = readImuSensorYaml(imu_yaml);
+    c.imu.gravity = base.imu.gravity;
+  }
+  c.validate();
+  return c;
+}
+
+namespace {
+
+std::string seconds(Timestamp t) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.3f s", toSeconds(t));
+  return buf;
+}
+
+/// " (the image time stamps look like ms)" when images and IMU differ by a factor of 1e3 / 1e6 / 1e9, else "".
+std::string unitHint(Timestamp image_t, Timestamp imu_t) {
+  if (image_t <= 0 || imu_t <= 0) return "";
+  const double ratio = static_cast<double>(imu_t) / static_cast<double>(image_t);
+  const struct { double factor; const char* unit; } units[] = {{1e3, "us"}, {1e6, "ms"}, {1e9, "s"}};
+  for (const auto& u : units)
+    if (ratio > 0.3 * u.factor && ratio < 3.0 * u.factor)
+      return std::string(" (the image time stamps look like ") + u.unit + ")";
+  for (const auto& u : units)
+    if (ratio * u.factor > 0.3 && ratio * u.factor < 3.0)
+      return std::string(" (the IMU time stamps look like ") + u.unit + ")";
+  return "";
+}
+
+/// The frames [first, last) to run: after start_s, at most max_frames, and only those the IMU log covers (a warning
+/// names the files and the times when it does not cover them all; an InputError when it covers none).
+std::pair<std::size_t, std::size_t> selectFrames(const EurocDataset& ds, const RunOptions& options,
+                                                 std::vector<std::string>* warnings) {
   const auto& frames = ds.frames();
   const auto& imu = ds.imu();
-  if (frames.empty()) throw InputError(dataset_path, 0, "the dataset has no images");
-  if (imu.empty()) throw InputError(dataset_path, 0, "the dataset has no IMU samples");
-
-  // Select the frames to run.
+  const std::string imu_csv = ds.root() + "/imu0/data.csv", cam_csv = ds.root() + "/cam0/data.csv";
   const Timestamp t_first = frames.front().t + fromSeconds(options.start_s);
   std::size_t first = 0;
   while (first < frames.size() && frames[first].t < t_first) ++first;
@@ -45,8 +86,133 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
   if (options.max_frames >= 0) last = std::min(last, first + static_cast<std::size_t>(options.max_frames));
   if (first >= last) throw UsageError("no frames selected (start_s / max_frames leave nothing to run)");
 
-  RunSummary summary;
-  System system(config);
+  const Timestamp imu0 = imu.front().t, imu1 = imu.back().t;
+  if (frames[first].t > imu1 || frames[last - 1].t < imu0)
+    throw InputError(cam_csv, 0,
+                     "no image lies in the IMU log's time span: images " + seconds(frames[first].t) + " to " +
+                         seconds(frames[last - 1].t) + ", IMU (" + imu_csv + ") " + seconds(imu0) + " to " +
+                         seconds(imu1) + "; both must be in ns on the same clock" +
+                         unitHint(frames[first].t, imu0));
+  std::size_t covered = last;
+  while (covered > first && frames[covered - 1].t > imu1) --covered;
+  if (covered < last) {
+    warnings->push_back(imu_csv + " ends at " + seconds(imu1) + ", before the last image (" +
+                        seconds(frames[last - 1].t) + "): the " + std::to_string(last - covered) +
+                        " images after it are not run");
+    last = covered;
+  }
+  std::size_t begin = first;
+  while (begin < last && frames[begin].t < imu0) ++begin;
+  if (begin > first)
+    warnings->push_back(imu_csv + " starts at " + seconds(imu0) + ", after the first image (" +
+                        seconds(frames[first].t) + "): the " + std::to_string(begin - first) +
+                        " images before it are not run");
+  return {begin, last};
+}
+
+}  // namespace
+
+StreamRun::StreamRun(const Config& config, double realtime_speed)
+    : config_(config), realtime_speed_(realtime_speed), wall0_(std::chrono::steady_clock::now()),
+      cpu0_(processCpuSeconds()) {
+  if (realtime_speed_ < 0.0) throw UsageError("realtime speed must be >= 0 (0: as fast as possible)");
+  if (realtime_speed_ > 0.0) config_.pipeline.blocking = false;
+  system_ = std::make_unique<System>(config_);
+  summary_.stereo = config_.stereo;
+}
+
+StreamRun::~StreamRun() = default;
+
+void StreamRun::pace(Timestamp t) {
+  if (realtime_speed_ <= 0.0) return;
+  if (pace_t0_ < 0) {
+    pace_t0_ = t;
+    wall0_ = std::chrono::steady_clock::now();
+    return;
+  }
+  const double due_s = toSeconds(t - pace_t0_) / realtime_speed_;
+  std::this_thread::sleep_until(wall0_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                             std::chrono::duration<double>(due_s)));
+}
+
+void StreamRun::addImu(Timestamp t, const Vec3& acc, const Vec3& gyr) {
+  pace(t);
+  system_->addImu(t, acc, gyr);
+  if (summary_.imu_samples == 0) summary_.first_imu_t = t;
+  summary_.last_imu_t = t;
+  ++summary_.imu_samples;
+}
+
+bool StreamRun::addFrame(Timestamp t, const cv::Mat& left, const cv::Mat& right, double load_cpu_s) {
+  if (finished_) throw UsageError("StreamRun: addFrame after finish");
+  pace(t);
+  summary_.image_load_cpu_s += load_cpu_s;
+  bool accepted = false;
+  if (config_.stereo) {
+    if (right.empty()) throw UsageError("StreamRun: a stereo config needs the right image of every frame");
+    accepted = system_->addStereo(t, left, right);
+  } else {
+    accepted = system_->addMono(t, left);
+  }
+  if (summary_.frames == 0) summary_.first_frame_t = t;
+  summary_.last_frame_t = t;
+  ++summary_.frames;
+  return accepted;
+}
+
+RunSummary StreamRun::finish() {
+  if (finished_) throw UsageError("StreamRun: finish called twice");
+  finished_ = true;
+  system_->finish();
+  RunSummary summary = std::move(summary_);
+  summary.results = system_->trajectory();
+  SystemMap map = system_->map();
+  summary.map_points = std::move(map.points);
+  summary.map_lines = std::move(map.lines);
+  summary.dropped_frames = system_->droppedFrames();
+  summary.processed_frames = static_cast<int>(summary.results.size());
+  for (const FrameResult& r : summary.results) {
+    if (r.estimate.has_pose) {
+      if (summary.frames_with_pose == 0) summary.init_time_s = toSeconds(r.estimate.t - summary.first_frame_t);
+      ++summary.frames_with_pose;
+    }
+    summary.reinitialisations = std::max(summary.reinitialisations, r.estimate.reinitialisations);
+  }
+  summary.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
+  if (summary.frames > 0)
+    summary.sequence_duration_s =
+        toSeconds(summary.last_frame_t - summary.first_frame_t) + 1.0 / config_.cam0.rate_hz;
+  if (summary.sequence_duration_s > 0.0) {
+    summary.real_time_factor = summary.wall_time_s / summary.sequence_duration_s;
+    summary.cpu_time_s = processCpuSeconds() - cpu0_;
+    summary.cpu_real_time_factor = summary.cpu_time_s / summary.sequence_duration_s;
+  }
+  return summary;
+}
+
+RunSummary runEuroc(const std::string& dataset_path, const Config& config, const RunOptions& options) {
+  EurocOpenOptions open = options.open;
+  open.use_cam1 = open.use_cam1 && config.stereo;
+  const EurocDataset ds = EurocDataset::open(dataset_path, open);
+  const auto& frames = ds.frames();
+  const auto& imu = ds.imu();
+  if (frames.empty()) throw InputError(dataset_path, 0, "the dataset has no images");
+  if (imu.empty()) throw InputError(dataset_path, 0, "the dataset has no IMU samples");
+  if (config.stereo && !ds.stereo())
+    throw ConfigError("config key 'stereo': the config is stereo but " + dataset_path +
+                                    " has no cam1 (set stereo: false for a monocular run)");
+  std::vector<std::string> warnings = ds.warnings();
+  if (!config.stereo) {
+    std::error_code ec;
+    const bool has_cam1 = std::filesystem::exists(std::filesystem::path(ds.root()) / "cam1" / "data.csv", ec);
+    warnings.push_back(std::string("monocular run: ") +
+                       (has_cam1 ? "the config sets stereo: false" : "the dataset has no cam1/data.csv") +
+                       " (monocular + IMU initialisation is not available yet: give a stereo dataset)");
+  }
+  const auto [first, last] = selectFrames(ds, options, &warnings);
+
+  StreamRun run(config, options.realtime_speed);
+  for (std::string& w : warnings) run.addWarning(std::move(w));
   const int total = static_cast<int>(last - first);
   // IMU from before the first frame: the estimator's stillness test and gravity alignment look back
   // estimator.init.gravity_window_s from the first image.
@@ -58,49 +224,24 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
     const StereoFrameRef& f = frames[i];
     // Every IMU sample up to and including the first one at or after the frame time.
     while (k < imu.size()) {
-      system.addImu(imu[k].t, imu[k].acc, imu[k].gyr);
+      run.addImu(imu[k].t, imu[k].acc, imu[k].gyr);
       const bool covers = imu[k].t >= f.t;
       ++k;
       if (covers) break;
     }
     const double load0 = threadCpuMs();
     const cv::Mat left = EurocDataset::loadImage(f.left_path);
+    cv::Mat right;
     if (config.stereo) {
       if (f.right_path.empty()) throw InputError(f.left_path, 0, "no right image pairs with this left image");
-      const cv::Mat right = EurocDataset::loadImage(f.right_path);
-      summary.image_load_cpu_s += 1e-3 * (threadCpuMs() - load0);
-      system.addStereo(f.t, left, right);
-    } else {
-      summary.image_load_cpu_s += 1e-3 * (threadCpuMs() - load0);
-      system.addMono(f.t, left);
+      right = EurocDataset::loadImage(f.right_path);
     }
-    ++summary.frames;
-    if (options.progress) options.progress(summary.frames, total);
+    run.addFrame(f.t, left, right, 1e-3 * (threadCpuMs() - load0));
+    if (options.progress) options.progress(run.frames(), total);
   }
   // A few IMU samples past the last frame, so it is covered.
-  for (int extra = 0; extra < 4 && k < imu.size(); ++extra, ++k) system.addImu(imu[k].t, imu[k].acc, imu[k].gyr);
-  system.finish();
-
-  summary.results = system.trajectory();
-  SystemMap map = system.map();
-  summary.map_points = std::move(map.points);
-  summary.map_lines = std::move(map.lines);
-  summary.dropped_frames = system.droppedFrames();
-  summary.processed_frames = static_cast<int>(summary.results.size());
-  for (const FrameResult& r : summary.results) {
-    if (r.estimate.has_pose) {
-      if (summary.frames_with_pose == 0) summary.init_time_s = toSeconds(r.estimate.t - frames[first].t);
-      ++summary.frames_with_pose;
-    }
-    summary.reinitialisations = std::max(summary.reinitialisations, r.estimate.reinitialisations);
-  }
-  summary.wall_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-  summary.sequence_duration_s = toSeconds(frames[last - 1].t - frames[first].t) + 1.0 / config.cam0.rate_hz;
-  summary.real_time_factor = summary.wall_time_s / summary.sequence_duration_s;
-  summary.cpu_time_s = processCpuSeconds() - cpu0;
-  summary.cpu_real_time_factor = summary.cpu_time_s / summary.sequence_duration_s;
-  return summary;
+  for (int extra = 0; extra < 4 && k < imu.size(); ++extra, ++k) run.addImu(imu[k].t, imu[k].acc, imu[k].gyr);
+  return run.finish();
 }
 
 void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {

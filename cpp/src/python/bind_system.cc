@@ -1,15 +1,21 @@
-// Bindings of the public API: Config, System, FrameResult, dataset runs. Plain value types in, numpy arrays out.
+// Bindings of the System (frame by frame) and its FrameResult.
+//
+// Python callbacks run on the estimator thread. An exception raised by one must not cross that thread (it would
+// abort the process); it is kept, the callback is not called again, and the exception is raised once, on the
+// caller's thread, by the next add_* / finish call. The System keeps running.
 #include <pybind11/eigen.h>
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <memory>
+#include <mutex>
 #include <string>
 
+#include "bind_arrays.h"
+#include "bind_images.h"
 #include "linnet/core/error.h"
-#include "linnet/pipeline/config.h"
-#include "linnet/pipeline/dataset_runner.h"
 #include "linnet/pipeline/system.h"
 
 namespace py = pybind11;
@@ -18,109 +24,87 @@ namespace linnet::python {
 
 namespace {
 
-const char* statusName(TrackingStatus s) {
-  switch (s) {
-    case TrackingStatus::kInitialising:
-      return "initialising";
-    case TrackingStatus::kTracking:
-      return "tracking";
-    case TrackingStatus::kLost:
-      return "lost";
+/// The first exception a Python callback raised, until it is handed to the caller.
+struct CallbackFailure {
+  std::mutex mutex;
+  py::object exception;  // the exception instance (None: none pending); touched with the GIL held
+  bool failed = false;   // once true, the callback is not called again
+};
+
+/// System plus the state of its Python callback.
+class PySystem {
+ public:
+  explicit PySystem(const Config& config) : system_(config), failure_(std::make_shared<CallbackFailure>()) {}
+
+  void setCallback(py::function cb) {
+    // The estimator thread copies the callback; whichever copy goes last deletes the function, with the GIL.
+    std::shared_ptr<py::function> holder(new py::function(std::move(cb)), [](py::function* f) {
+      py::gil_scoped_acquire gil;
+      delete f;
+    });
+    std::weak_ptr<CallbackFailure> weak = failure_;
+    system_.setCallback([holder, weak](const FrameResult& r) {
+      py::gil_scoped_acquire gil;
+      const auto failure = weak.lock();
+      if (!failure || failure->failed) return;
+      try {
+        (*holder)(r);
+      } catch (py::error_already_set& e) {
+        std::lock_guard<std::mutex> lock(failure->mutex);
+        failure->failed = true;
+        failure->exception = e.value();
+      }
+    });
   }
-  return "unknown";
-}
 
-Vec3 toVec3(const py::array_t<double, py::array::c_style | py::array::forcecast>& a, const char* name) {
-  if (a.size() != 3) throw UsageError(std::string(name) + " must have 3 elements");
-  return Vec3(a.at(0), a.at(1), a.at(2));
-}
-
-// A cv::Mat header over a numpy uint8 image (H x W, or H x W x 3). The System copies what it keeps.
-cv::Mat toMat(const py::array& image, const char* name) {
-  if (!py::isinstance<py::array_t<std::uint8_t>>(image))
-    throw UsageError(std::string(name) + " image must be a numpy uint8 array");
-  py::array_t<std::uint8_t, py::array::c_style> a = py::array_t<std::uint8_t, py::array::c_style>::ensure(image);
-  if (a.ndim() == 2) return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_8UC1, a.mutable_data());
-  if (a.ndim() == 3 && (a.shape(2) == 3 || a.shape(2) == 4))
-    return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_8UC(static_cast<int>(a.shape(2))),
-                   a.mutable_data());
-  throw UsageError(std::string(name) + " image must be H x W (gray) or H x W x 3 (BGR)");
-}
-
-py::dict resultsToArrays(const std::vector<FrameResult>& results, bool only_with_pose) {
-  std::vector<const FrameResult*> sel;
-  for (const FrameResult& r : results)
-    if (!only_with_pose || r.estimate.has_pose) sel.push_back(&r);
-  const py::ssize_t n = static_cast<py::ssize_t>(sel.size());
-  py::array_t<std::int64_t> t(n);
-  py::array_t<double> p({n, py::ssize_t(3)}), q({n, py::ssize_t(4)}), v({n, py::ssize_t(3)}),
-      ba({n, py::ssize_t(3)}), bg({n, py::ssize_t(3)});
-  py::array_t<bool> has_pose(n), keyframe(n);
-  py::array_t<double> frontend_ms(n), backend_ms(n);
-  py::array_t<int> points(n), lines(n);
-  for (py::ssize_t i = 0; i < n; ++i) {
-    const EstimatorOutput& e = sel[i]->estimate;
-    t.mutable_at(i) = e.t;
-    for (int k = 0; k < 3; ++k) {
-      p.mutable_at(i, k) = e.T_W_B.p[k];
-      v.mutable_at(i, k) = e.v_W[k];
-      ba.mutable_at(i, k) = e.b_a[k];
-      bg.mutable_at(i, k) = e.b_g[k];
+  /// Raises (once) the exception a callback raised, with the GIL held.
+  void raisePending() {
+    py::object exc;
+    {
+      std::lock_guard<std::mutex> lock(failure_->mutex);
+      if (!failure_->exception || failure_->exception.is_none()) return;
+      exc = std::move(failure_->exception);
+      failure_->exception = py::none();
     }
-    q.mutable_at(i, 0) = e.T_W_B.q.x();
-    q.mutable_at(i, 1) = e.T_W_B.q.y();
-    q.mutable_at(i, 2) = e.T_W_B.q.z();
-    q.mutable_at(i, 3) = e.T_W_B.q.w();
-    has_pose.mutable_at(i) = e.has_pose;
-    keyframe.mutable_at(i) = e.keyframe;
-    frontend_ms.mutable_at(i) = sel[i]->frontend_ms;
-    backend_ms.mutable_at(i) = sel[i]->backend_ms;
-    points.mutable_at(i) = sel[i]->tracked_points;
-    lines.mutable_at(i) = sel[i]->tracked_lines;
+    PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(exc.ptr())), exc.ptr());
+    throw py::error_already_set();
   }
-  py::dict d;
-  d["t_ns"] = t;
-  d["position"] = p;
-  d["quaternion_xyzw"] = q;
-  d["velocity"] = v;
-  d["bias_acc"] = ba;
-  d["bias_gyr"] = bg;
-  d["has_pose"] = has_pose;
-  d["keyframe"] = keyframe;
-  d["frontend_ms"] = frontend_ms;
-  d["backend_ms"] = backend_ms;
-  d["points"] = points;
-  d["lines"] = lines;
-  return d;
+
+  System& system() { return system_; }
+
+ private:
+  System system_;
+  std::shared_ptr<CallbackFailure> failure_;
+};
+
+/// add_imu's time stamps: an int, or a 1-D array (or N x 1) of them.
+py::array_t<std::int64_t, py::array::c_style> timesOf(const py::object& t_ns) {
+  auto t = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(t_ns);
+  if (!t) throw UsageError("t_ns must be an integer (ns) or an array of them");
+  return t;
 }
 
-py::array_t<double> pointsToArray(const std::vector<Vec3>& pts) {
-  py::array_t<double> a({static_cast<py::ssize_t>(pts.size()), py::ssize_t(3)});
-  for (std::size_t i = 0; i < pts.size(); ++i)
-    for (int k = 0; k < 3; ++k) a.mutable_at(static_cast<py::ssize_t>(i), k) = pts[i][k];
-  return a;
+/// acc / gyr of N samples: a 3-vector when N == 1, or an N x 3 array.
+py::array_t<double, py::array::c_style> vectorsOf(const py::object& a, py::ssize_t n, const char* name) {
+  auto v = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!v || v.size() != 3 * n || (n > 1 && (v.ndim() != 2 || v.shape(1) != 3)))
+    throw UsageError(std::string(name) + " must be " + (n == 1 ? "3 numbers" : "an N x 3 array with N = " +
+                                                                                   std::to_string(n)) +
+                     " (one row per time stamp)");
+  return v;
 }
 
-py::dict mapToDict(const std::vector<Vec3>& points, const std::vector<MapLine>& lines) {
-  const py::ssize_t n = static_cast<py::ssize_t>(lines.size());
-  py::array_t<double> segs({n, py::ssize_t(2), py::ssize_t(3)});
-  py::array_t<std::int64_t> ids(n);
-  py::array_t<int> obs(n);
-  for (py::ssize_t i = 0; i < n; ++i) {
-    const MapLine& l = lines[static_cast<std::size_t>(i)];
-    for (int k = 0; k < 3; ++k) {
-      segs.mutable_at(i, 0, k) = l.a[k];
-      segs.mutable_at(i, 1, k) = l.b[k];
-    }
-    ids.mutable_at(i) = l.id;
-    obs.mutable_at(i) = l.observations;
-  }
-  py::dict d;
-  d["points"] = pointsToArray(points);
-  d["lines"] = segs;
-  d["line_ids"] = ids;
-  d["line_observations"] = obs;
-  return d;
+void addImu(PySystem& s, const py::object& t_ns, const py::object& acc, const py::object& gyr) {
+  s.raisePending();
+  const auto t = timesOf(t_ns);
+  const py::ssize_t n = t.size();
+  const auto a = vectorsOf(acc, n, "acc");
+  const auto g = vectorsOf(gyr, n, "gyr");
+  const double* ad = a.data();
+  const double* gd = g.data();
+  for (py::ssize_t i = 0; i < n; ++i)
+    s.system().addImu(t.data()[i], Vec3(ad[3 * i], ad[3 * i + 1], ad[3 * i + 2]),
+                      Vec3(gd[3 * i], gd[3 * i + 1], gd[3 * i + 2]));
 }
 
 }  // namespace
@@ -131,30 +115,9 @@ void bindSystem(py::module_& m) {
   py::register_exception<ConfigError>(m, "ConfigError", m.attr("Error").ptr());
   py::register_exception<UsageError>(m, "UsageError", m.attr("Error").ptr());
 
-  py::class_<Config>(m, "Config", "Root configuration (one options section per module); YAML in and out.")
-      .def(py::init([] { return Config::eurocStereoImu(); }))
-      .def_static("euroc_stereo_imu", &Config::eurocStereoImu, "EuRoC stereo-inertial defaults")
-      .def_static("load", &Config::load, py::arg("path"), "Defaults overridden by a YAML file")
-      .def_static("from_yaml", &Config::fromYaml, py::arg("text"), py::arg("source") = "<yaml>")
-      .def_static("for_euroc", [](const std::string& dataset, const Config* base) {
-            return configForEuroc(dataset, base ? *base : Config::eurocStereoImu());
-          }, py::arg("dataset"), py::arg("base") = nullptr,
-          "Config with the calibration (cameras, IMU noise) of a EuRoC folder")
-      .def("merge", &Config::merge, py::arg("path"))
-      .def("merge_yaml", &Config::mergeYaml, py::arg("text"), py::arg("source") = "<yaml>")
-      .def("save", &Config::save, py::arg("path"))
-      .def("to_yaml", &Config::toYaml)
-      .def("validate", &Config::validate)
-      .def_property("stereo", [](const Config& c) { return c.stereo; }, [](Config& c, bool s) { c.stereo = s; })
-      .def_property("blocking", [](const Config& c) { return c.pipeline.blocking; },
-                    [](Config& c, bool b) { c.pipeline.blocking = b; })
-      .def_property("use_lines", [](const Config& c) { return c.pipeline.use_lines; },
-                    [](Config& c, bool b) { c.pipeline.use_lines = b; })
-      .def("__repr__", [](const Config& c) { return "<linnet.Config stereo=" + std::string(c.stereo ? "True" : "False") + ">"; });
-
   py::class_<FrameResult>(m, "FrameResult", "What the System reports for one processed frame")
       .def_property_readonly("t_ns", [](const FrameResult& r) { return r.estimate.t; })
-      .def_property_readonly("status", [](const FrameResult& r) { return statusName(r.estimate.status); })
+      .def_property_readonly("status", [](const FrameResult& r) { return toString(r.estimate.status); })
       .def_property_readonly("has_pose", [](const FrameResult& r) { return r.estimate.has_pose; })
       .def_property_readonly("position", [](const FrameResult& r) { return Vec3(r.estimate.T_W_B.p); })
       .def_property_readonly("quaternion_xyzw", [](const FrameResult& r) {
@@ -178,80 +141,47 @@ void bindSystem(py::module_& m) {
       .def_property_readonly("landmark_points", [](const FrameResult& r) { return r.estimate.num_points; })
       .def_property_readonly("landmark_lines", [](const FrameResult& r) { return r.estimate.num_lines; });
 
-  py::class_<System>(m, "System", "Stereo/mono + IMU SLAM system: add_imu / add_stereo / add_mono, then finish()")
+  py::class_<PySystem>(m, "System",
+                       "Stereo/mono + IMU SLAM system: add_imu / add_stereo / add_mono in time order, then finish()")
       .def(py::init<const Config&>(), py::arg("config"))
-      .def("add_imu", [](System& s, std::int64_t t_ns, py::array_t<double, py::array::c_style | py::array::forcecast> acc,
-                         py::array_t<double, py::array::c_style | py::array::forcecast> gyr) {
-             s.addImu(t_ns, toVec3(acc, "acc"), toVec3(gyr, "gyr"));
-           }, py::arg("t_ns"), py::arg("acc"), py::arg("gyr"))
-      .def("add_stereo", [](System& s, std::int64_t t_ns, const py::array& left, const py::array& right) {
-             cv::Mat l = toMat(left, "left"), r = toMat(right, "right");
+      .def("add_imu", &addImu, py::arg("t_ns"), py::arg("acc"), py::arg("gyr"),
+           "IMU samples, body frame, SI: t_ns an int (ns) with acc / gyr 3-vectors (m/s^2, rad/s), or N time "
+           "stamps with N x 3 arrays. Time stamps must increase strictly.")
+      .def("add_stereo", [](PySystem& s, std::int64_t t_ns, const py::array& left, const py::array& right) {
+             s.raisePending();
+             const ImageView l(left, "left"), r(right, "right");
              py::gil_scoped_release release;
-             return s.addStereo(t_ns, l, r);
-           }, py::arg("t_ns"), py::arg("left"), py::arg("right"))
-      .def("add_mono", [](System& s, std::int64_t t_ns, const py::array& image) {
-             cv::Mat im = toMat(image, "image");
+             return s.system().addStereo(t_ns, l.mat, r.mat);
+           }, py::arg("t_ns"), py::arg("left"), py::arg("right"),
+           "A stereo pair (uint8 H x W gray or H x W x 3 BGR, any memory layout) at t_ns. Returns True when the "
+           "frame was queued, False when it was dropped (real-time mode only: the front-end was busy). Raises "
+           "linnet.UsageError for a wrong size / type or a time stamp not after the previous frame's.")
+      .def("add_mono", [](PySystem& s, std::int64_t t_ns, const py::array& image) {
+             s.raisePending();
+             const ImageView im(image, "image");
              py::gil_scoped_release release;
-             return s.addMono(t_ns, im);
-           }, py::arg("t_ns"), py::arg("image"))
-      .def("set_callback", [](System& s, py::function cb) {
-             auto holder = std::make_shared<py::function>(std::move(cb));
-             s.setCallback([holder](const FrameResult& r) {
-               py::gil_scoped_acquire gil;
-               (*holder)(r);
-             });
-           }, py::arg("callback"), "callback(FrameResult), called on the estimator thread in time order")
-      .def("finish", [](System& s) {
-             py::gil_scoped_release release;
-             s.finish();
-           })
-      .def("trajectory", [](const System& s, bool only_with_pose) { return resultsToArrays(s.trajectory(), only_with_pose); },
-           py::arg("only_with_pose") = true, "dict of numpy arrays: t_ns, position, quaternion_xyzw, velocity, ...")
-      .def("results", &System::trajectory, "list of FrameResult")
-      .def("map", [](const System& s) {
-             const SystemMap map = s.map();
+             return s.system().addMono(t_ns, im.mat);
+           }, py::arg("t_ns"), py::arg("image"), "A monocular image (config.stereo False); returns as add_stereo")
+      .def("set_callback", &PySystem::setCallback, py::arg("callback"),
+           "callback(FrameResult), called on the estimator thread in time order. If it raises, it is not called "
+           "again and the exception is raised by the next add_* / finish call.")
+      .def("finish", [](PySystem& s) {
+             {
+               py::gil_scoped_release release;
+               s.system().finish();
+             }
+             s.raisePending();
+           }, "Processes everything queued and stops the threads (idempotent)")
+      .def("trajectory", [](PySystem& s, bool only_with_pose) {
+             return resultsToArrays(s.system().trajectory(), only_with_pose);
+           }, py::arg("only_with_pose") = true, "dict of numpy arrays: t_ns, position, quaternion_xyzw, velocity, ...")
+      .def("results", [](PySystem& s) { return s.system().trajectory(); }, "list of FrameResult")
+      .def("map", [](PySystem& s) {
+             const SystemMap map = s.system().map();
              return mapToDict(map.points, map.lines);
            }, "dict: points (N x 3), lines (M x 2 x 3 segment endpoints), line_ids (M), line_observations (M); W, "
               "metres; empty until finish()")
-      .def_property_readonly("dropped_frames", &System::droppedFrames);
-
-  py::class_<RunSummary>(m, "RunSummary", "Result of a dataset run")
-      .def_readonly("frames", &RunSummary::frames)
-      .def_readonly("processed_frames", &RunSummary::processed_frames)
-      .def_readonly("frames_with_pose", &RunSummary::frames_with_pose)
-      .def_readonly("dropped_frames", &RunSummary::dropped_frames)
-      .def_readonly("init_time_s", &RunSummary::init_time_s)
-      .def_readonly("reinitialisations", &RunSummary::reinitialisations)
-      .def_readonly("wall_time_s", &RunSummary::wall_time_s)
-      .def_readonly("sequence_duration_s", &RunSummary::sequence_duration_s)
-      .def_readonly("real_time_factor", &RunSummary::real_time_factor)
-      .def_readonly("cpu_time_s", &RunSummary::cpu_time_s)
-      .def_readonly("cpu_real_time_factor", &RunSummary::cpu_real_time_factor)
-      .def_readonly("image_load_cpu_s", &RunSummary::image_load_cpu_s)
-      .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
-           py::arg("only_with_pose") = true)
-      .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },
-           "dict: points (N x 3), lines (M x 2 x 3), line_ids (M), line_observations (M); W, metres")
-      .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
-      .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
-           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv into out_dir");
-
-  m.def("run_euroc", [](const std::string& dataset, const Config& config, int max_frames, double start_s,
-                        std::optional<py::function> progress) {
-          RunOptions opt;
-          opt.max_frames = max_frames;
-          opt.start_s = start_s;
-          if (progress) {
-            auto holder = std::make_shared<py::function>(*progress);
-            opt.progress = [holder](int done, int total) {
-              py::gil_scoped_acquire gil;
-              (*holder)(done, total);
-            };
-          }
-          py::gil_scoped_release release;
-          return runEuroc(dataset, config, opt);
-        }, py::arg("dataset"), py::arg("config"), py::arg("max_frames") = -1, py::arg("start_s") = 0.0,
-        py::arg("progress") = py::none(), "Runs a EuRoC folder (blocking, deterministic) and returns a RunSummary");
+      .def_property_readonly("dropped_frames", [](PySystem& s) { return s.system().droppedFrames(); });
 }
 
 }  // namespace linnet::python

@@ -5,7 +5,9 @@
 namespace py = pybind11;
 
 namespace linnet::python {
-void bindSystem(py::module_& m);  // bind_system.cc: Config, System, dataset runs
+void bindConfig(py::module_& m);  // bind_config.cc: Config
+void bindSystem(py::module_& m);  // bind_system.cc: System, FrameResult, exceptions
+void bindRun(py::module_& m);     // bind_run.cc: run_euroc, StreamRun, RunSummary
 void bindSim(py::module_& m);     // bind_sim.cc: simulator renderer
 void bindLines(py::module_& m);   // bind_lines.cc: line front-end
 }  // namespace linnet::python
@@ -13,7 +15,9 @@ void bindLines(py::module_& m);   // bind_lines.cc: line front-end
 PYBIND11_MODULE(_linnet, m) {
   m.doc() = "Linnet C++ core";
   m.attr("__version__") = "0.1.0";
-  linnet::python::bindSystem(m);
+  linnet::python::bindSystem(m);  // first: registers the exception types
+  linnet::python::bindConfig(m);
+  linnet::python::bindRun(m);
   linnet::python::bindSim(m);
   linnet::python::bindLines(m);
 }

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_FILE
+
 STAGES = ("detect_ms", "merge_ms", "describe_ms", "temporal_ms", "stereo_ms", "left_ms", "total_ms", "cpu_left_ms",
           "cpu_total_ms")
 
@@ -73,7 +75,7 @@ def _default_trajectory() -> Path:
 
 @click.command("lines")
 @click.argument("dataset", required=False, type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the results as JSON.")
+@click.option("--json", "json_out", type=OUTPUT_FILE, help="Write the results as JSON.")
 @click.option("--frames", default=None, help="Frame range A:B (Python slice).")
 @click.option("--detector", type=click.Choice(["ed", "edlines", "fld", "lsd"]), default=None, help="Line detector.")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_FILE
+
 
 def stage_table(timing_csv: Path) -> dict:
     import numpy as np
@@ -27,7 +29,7 @@ def stage_table(timing_csv: Path) -> dict:
 @click.argument("dataset", required=False, type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--duration", type=float, default=20.0, show_default=True,
               help="Without DATASET: seconds of the built-in simulated sequence.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the table as JSON.")
+@click.option("--json", "json_out", type=OUTPUT_FILE, help="Write the table as JSON.")
 def COMMAND(dataset, duration, json_out):
     """Run Linnet on DATASET (default: a simulated room sequence) and print per-stage median / p95 ms."""
     import linnet

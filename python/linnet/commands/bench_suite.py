@@ -16,6 +16,7 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE
 from linnet.evaluation import InputError as EvalInputError, write_json_file
 from linnet.sim.realism import REALISM_LEVELS, REALISM_PRESETS
 from linnet.suite import ReplaySpec, RunSpec, Suite, driver_thread_env, make_executor, markdown_table, plot_rows
@@ -104,18 +105,18 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
 @click.option("--duration", type=float, default=None, help="Seconds of each sequence (default: all of it).")
 @click.option("--start", type=float, default=0.0, show_default=True, help="Seconds skipped into each sequence.")
 @click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--cache", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--cache", type=OUTPUT_DIR,
               default=Path.home() / ".cache" / "linnet" / "sim", show_default=True,
               help="Replay cache folder (on a cluster: a folder every node sees).")
-@click.option("--runs", type=click.Path(file_okay=False, path_type=Path), default=Path("runs") / "suite",
+@click.option("--runs", type=OUTPUT_DIR, default=Path("runs") / "suite",
               show_default=True, help="Where the systems' outputs go (on a cluster: a folder every node sees).")
 @click.option("--executor", type=click.Choice(["auto", "serial", "ray"]), default="auto", show_default=True,
               help="auto: a local Ray instance on this machine's cores when Ray is installed, else serial.")
 @click.option("--ray-address", default=None, metavar="ADDRESS",
               help="Run the jobs on an existing Ray cluster (e.g. 10.0.0.5:6379, or 'auto').")
 @click.option("--timeout", type=float, default=3600.0, show_default=True, help="Seconds per system run.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path), help="Write the rows as JSON.")
-@click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+@click.option("--json", "json_out", type=OUTPUT_FILE, help="Write the rows as JSON.")
+@click.option("--report", "report_dir", type=OUTPUT_DIR, default=None,
               help="Write suite.md, suite.json and suite.png (APE and real-time factor per sequence, scene, system).")
 def COMMAND(sequences, scenes, systems, realism, duration, start, seed, cache, runs, executor, ray_address, timeout,
             json_out, report_dir):

@@ -5,9 +5,11 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_DIR
+
 
 @click.command("demo")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("runs/demo"),
+@click.option("--out", type=OUTPUT_DIR, default=Path("runs/demo"),
               show_default=True, help="Where the simulated sequence and the results go.")
 @click.option("--scene", default="room", show_default=True, help="Simulator scene (room, hall, lowtex, mixed).")
 @click.option("--duration", type=float, default=30.0, show_default=True, help="Seconds of simulated motion.")

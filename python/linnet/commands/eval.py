@@ -6,13 +6,14 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE
 from linnet import evaluation as ev
 
 
 class EvalInputError(click.ClickException):
-    """Bad or incompatible input files: one line on stderr, exit code 2."""
+    """Bad or incompatible input files: one line on stderr, exit code 1 (a data error)."""
 
-    exit_code = 2
+    exit_code = 1
 
 
 def _rpe_or_reason(est, gt, delta, align, t_max_diff, relation):
@@ -99,15 +100,15 @@ def _print_table(report: dict, ape_res, rpe_res, rpe_reason) -> None:
               help="RPE pair distance, metres of travelled path.")
 @click.option("--rpe-relation", type=click.Choice(tuple(ev.POSE_RELATIONS)), default="trans_part",
               show_default=True, help="RPE pose relation.")
-@click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+@click.option("--plot", "plot_dir", type=OUTPUT_DIR, default=None,
               help="Write PNG plots (top view, error over time, x/y/z) into this directory.")
-@click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--json", "json_file", type=OUTPUT_FILE, default=None,
               help="Write the numbers as JSON to this file.")
 def eval_command(est, gt, align, t_max_diff, pose_relation, rpe_delta, rpe_relation, plot_dir, json_file):
     """Evaluate the trajectory EST against the ground truth GT (each TUM or EuRoC csv, detected from the content).
 
     Prints APE (absolute pose error after alignment) and RPE (relative pose error over RPE_DELTA metres) computed
-    with evo; exit code 2 on unreadable or non-overlapping inputs.
+    with evo; exit code 1 on unreadable or non-overlapping inputs, 2 on a usage error.
     """
     try:
         est_traj = ev.load_trajectory(est)

@@ -5,11 +5,13 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_FILE
+
 
 class EvalMapInputError(click.ClickException):
-    """Missing or malformed run / dataset files: one line on stderr, exit code 2."""
+    """Missing or malformed run / dataset files: one line on stderr, exit code 1 (a data error)."""
 
-    exit_code = 2
+    exit_code = 1
 
 
 def _fmt(value, spec: str) -> str:
@@ -45,7 +47,7 @@ def _print_table(report: dict) -> None:
               help="Evaluate only map lines observed by at least this many frames.")
 @click.option("--within", "within_m", type=click.FloatRange(min=0.0), default=0.05, show_default=True,
               help="Distance bound (metres) of the 'both endpoints within' fraction.")
-@click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--json", "json_file", type=OUTPUT_FILE, default=None,
               help="Write the figures as JSON to this file.")
 def COMMAND(run_dir, dataset, min_observations, within_m, json_file):
     """Score RUN_DIR/map_lines.csv (from `linnet run`) against DATASET/sim/lines.csv (from `linnet simulate`).

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_DIR
+
 CSV_COLUMNS = ("frame", "t_ns", "lines", "stereo_matched", "tracked", "new_lines", "detected_left", "detected_right",
                "detect_ms", "merge_ms", "describe_ms", "temporal_ms", "stereo_ms", "left_ms", "total_ms", "cpu_left_ms",
                "cpu_total_ms")
@@ -24,7 +26,7 @@ def _options(detector, max_lines, settings=()):
 
 @click.command("lines")
 @click.argument("dataset", type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", "out_dir", required=True, type=OUTPUT_DIR,
               help="Output folder for frame_NNNNNN.png and lines.csv.")
 @click.option("--frames", default=None, help="Frame range A:B (Python slice, e.g. 0:50 or -20:).")
 @click.option("--detector", type=click.Choice(["ed", "edlines", "fld", "lsd"]), default=None,

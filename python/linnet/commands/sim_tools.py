@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_FILE
+
 
 def _fail(e: Exception):
     raise click.ClickException(str(e)) from None
@@ -35,9 +37,9 @@ def sim_group():
 @sim_group.command("fit-imu")
 @click.argument("imu_csv", type=click.Path(dir_okay=False))
 @click.argument("gt_csv", type=click.Path(dir_okay=False))
-@click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False),
+@click.option("--out", "out_file", required=True, type=OUTPUT_FILE,
               help="Model YAML to write (use it with linnet simulate --imu-noise FILE).")
-@click.option("--plot", "plot_file", type=click.Path(dir_okay=False), default=None, help="Also plot the spectra (PNG).")
+@click.option("--plot", "plot_file", type=OUTPUT_FILE, default=None, help="Also plot the spectra (PNG).")
 def fit_imu_command(imu_csv, gt_csv, out_file, plot_file):
     """Fit the IMU error spectra (rest / flight, per axis) of IMU_CSV (EuRoC imu0/data.csv) against GT_CSV (17-column
     EuRoC ground truth with velocities and biases)."""
@@ -67,8 +69,8 @@ def fit_imu_command(imu_csv, gt_csv, out_file, plot_file):
 @click.option("--max-db", type=float, default=3.0, show_default=True, help="Largest band level difference, dB.")
 @click.option("--max-std", type=float, default=0.2, show_default=True,
               help="Largest relative standard deviation difference.")
-@click.option("--plot", "plot_file", type=click.Path(dir_okay=False), default=None, help="Plot both spectra (PNG).")
-@click.option("--json", "json_file", type=click.Path(dir_okay=False), default=None, help="Write the figures as JSON.")
+@click.option("--plot", "plot_file", type=OUTPUT_FILE, default=None, help="Plot both spectra (PNG).")
+@click.option("--json", "json_file", type=OUTPUT_FILE, default=None, help="Write the figures as JSON.")
 def check_imu_command(imu_csv, gt_csv, dataset, max_db, max_std, plot_file, json_file):
     """Compare the IMU error spectra of a replay (DATASET, from linnet simulate) with those of a real log (IMU_CSV
     against GT_CSV), in 9 bands from 1 to 90 Hz per axis and phase. Exit code 1 when a figure is out of bounds."""

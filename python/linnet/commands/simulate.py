@@ -5,8 +5,19 @@ import json
 
 import click
 
+from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE, POSITIVE_SECONDS, SECONDS
+from linnet.sim.imu import IMU_NOISE_KEYWORDS
 from linnet.sim.realism import CALIB_ERRORS, REALISM_LEVELS, REALISM_PRESETS
 from linnet.sim.scene import SCENES
+
+
+def _check_imu_noise(ctx, param, value):
+    """A keyword or an existing file (what the file holds is checked when it is read: exit code 1)."""
+    from pathlib import Path
+
+    if value is None or value in IMU_NOISE_KEYWORDS or Path(value).is_file():
+        return value
+    raise click.BadParameter(f"'{value}' is neither {', '.join(IMU_NOISE_KEYWORDS)} nor an existing file")
 
 
 @click.command("simulate")
@@ -14,14 +25,14 @@ from linnet.sim.scene import SCENES
               help="Ground-truth trajectory: TUM (t x y z qx qy qz qw) or EuRoC csv (17 or 8 columns), body = IMU; "
                    "or builtin:loop (a 30 s figure-eight in a room).")
 @click.option("--scene", type=click.Choice(SCENES), default="room", show_default=True, help="Procedural scene.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder (gets mav0/).")
+@click.option("--out", "out_dir", required=True, type=OUTPUT_DIR, help="Output folder (gets mav0/).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the scene, the IMU noise and the images.")
-@click.option("--start", type=float, default=0.0, show_default=True, help="Seconds to skip into the trajectory.")
-@click.option("--duration", type=float, default=None, help="Seconds to simulate (default: to the end).")
+@click.option("--start", type=SECONDS, default=0.0, show_default=True, help="Seconds to skip into the trajectory.")
+@click.option("--duration", type=POSITIVE_SECONDS, default=None, help="Seconds to simulate (default: to the end).")
 @click.option("--realism", type=click.Choice(REALISM_LEVELS), default="easy", show_default=True,
               help="Preset: easy = clean sensors; hard = --blur --exposure-changes --imu-noise measured "
                    "--calib-error typical --time-offset-ms 3. Options given explicitly override the preset.")
-@click.option("--imu-noise", default=None, metavar="euroc|none|measured|FILE",
+@click.option("--imu-noise", default=None, metavar="euroc|none|measured|FILE", callback=_check_imu_noise,
               help="IMU noise: EuRoC ADIS16448 white-noise densities, none, measured (spectra of the real V1_01_easy "
                    "flight, vibration included), a model from linnet sim fit-imu, or a YAML with Kalibr's noise keys. "
                    "[preset: easy euroc, hard measured]")
@@ -36,7 +47,7 @@ from linnet.sim.scene import SCENES
               help="Constant offset added to every written camera stamp, ms. [preset: easy 0, hard 3]")
 @click.option("--stamp-jitter-us", type=float, default=None,
               help="Gaussian jitter (std, us) added to every written camera stamp. [preset: 0]")
-@click.option("--json", "json_file", type=click.Path(dir_okay=False), default=None,
+@click.option("--json", "json_file", type=OUTPUT_FILE, default=None,
               help="Also write the summary (frames, timings, fit residual) to this JSON file.")
 def simulate_command(trajectory, scene, out_dir, seed, start, duration, realism, imu_noise, real_imu, blur,
                      exposure_changes, calib_error, time_offset_ms, stamp_jitter_us, json_file):
@@ -58,8 +69,8 @@ def simulate_command(trajectory, scene, out_dir, seed, start, duration, realism,
         try:
             summary = simulate(trajectory, scene, out_dir, seed=seed, start=start, duration=duration,
                                real_imu=real_imu, progress=progress, **settings)
-        except InputError as e:
-            raise click.UsageError(str(e)) from None
+        except InputError as e:  # a file or value the simulator cannot use: a data error (exit code 1)
+            raise click.ClickException(str(e)) from None
     fit = summary["fit"]
     click.echo(f"wrote {summary['out_dir']}: {summary['frames']} stereo frames, {summary['duration_s']:.1f} s, "
                f"rendered in {summary['render_s']:.1f} s ({summary['stereo_fps']:.1f} stereo frames/s); "

@@ -5,18 +5,20 @@ from pathlib import Path
 
 import click
 
+from linnet.commands.params import OUTPUT_FILE
+
 
 class ViewInputError(click.ClickException):
-    """Unreadable run folder or files: one line on stderr, exit code 2."""
+    """Unreadable run folder or files: one line on stderr, exit code 1 (a data error)."""
 
-    exit_code = 2
+    exit_code = 1
 
 
 @click.command("view")
 @click.argument("run_dir", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--gt", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Ground truth (TUM or EuRoC csv); default: the dataset's, found through RUN_DIR/summary.json.")
-@click.option("--save", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--save", type=OUTPUT_FILE, default=None,
               help="Write a rerun recording (.rrd) instead of opening the viewer (works headless).")
 def COMMAND(run_dir, gt, save):
     """Show a run folder (from `linnet run`) in the rerun viewer: estimate, SE3-aligned ground truth, map.ply

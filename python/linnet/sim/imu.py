@@ -16,12 +16,16 @@ from typing import Optional
 import numpy as np
 import yaml
 
+from linnet.fileio import read_text_file
 from linnet.sim.imu_model import MODEL_KIND, MeasuredImuModel, shipped_model_path, synthesize_noise
 from linnet.sim.trajectory import InputError, SplineTrajectory
 
 IMU_RATE_HZ = 200.0
 IMU_PERIOD_NS = 5_000_000
 
+
+#: The --imu-noise values that are not files.
+IMU_NOISE_KEYWORDS = ("euroc", "none", "measured")
 
 @dataclass
 class ImuNoise:
@@ -63,24 +67,30 @@ class ImuNoise:
             return cls.measured(MeasuredImuModel.load(shipped_model_path()))
         path = Path(spec)
         if not path.is_file():
-            raise InputError(f"--imu-noise: '{spec}' is neither 'euroc', 'none', 'measured' nor an existing YAML "
-                             "file")
-        text = path.read_text(encoding="utf-8")
+            raise InputError(f"--imu-noise: '{spec}' is neither {', '.join(IMU_NOISE_KEYWORDS)} nor an existing "
+                             "YAML file")
+        text = read_text_file(path, "an IMU noise YAML file")
         if text.startswith("%YAML"):  # OpenCV-style header that PyYAML rejects
             text = text.split("\n", 1)[1]
         try:
             data = yaml.safe_load(text) or {}
         except yaml.YAMLError as e:
             raise InputError(f"{path}: not valid YAML: {e}") from None
+        if isinstance(data, dict) and isinstance(data.get("imu0"), dict):  # Kalibr imu.yaml: keys under imu0
+            data = data["imu0"]
         if isinstance(data, dict) and data.get("kind") == MODEL_KIND:
             return cls.measured(MeasuredImuModel.from_dict(data, str(path)))
         noise = cls()
         known = noise.numbers()
-        for key, value in data.items():
-            if key in known:
-                if not isinstance(value, (int, float)) or value < 0:
-                    raise InputError(f"{path}: key '{key}' must be a non-negative number, got {value!r}")
-                setattr(noise, key, float(value))
+        found = [key for key in (data if isinstance(data, dict) else {}) if key in known]
+        if not found:
+            raise InputError(f"{path}: no IMU noise key (expected some of: {', '.join(sorted(known))}; or a model "
+                             "from linnet sim fit-imu)")
+        for key in found:
+            value = data[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0 or value == float("inf"):
+                raise InputError(f"{path}: key '{key}' must be a non-negative number, got {value!r}")
+            setattr(noise, key, float(value))
         return noise
 
 

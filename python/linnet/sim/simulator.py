@@ -75,9 +75,9 @@ def prepare(trajectory: str, scene: str, seed: int = 0, start: float = 0.0, dura
     """Loads and fits the trajectory, makes the IMU and builds the scene (deterministic from the arguments)."""
     if scene not in SCENES:
         raise InputError(f"unknown scene '{scene}' (known: {', '.join(SCENES)})")
-    if start < 0:
-        raise InputError(f"--start must be >= 0 s, got {start}")
-    if duration is not None and duration < MIN_DURATION_S:
+    if not (math.isfinite(start) and start >= 0):
+        raise InputError(f"--start must be a finite number of seconds >= 0, got {start}")
+    if duration is not None and not (math.isfinite(duration) and duration >= MIN_DURATION_S):
         raise InputError(f"--duration must be >= {MIN_DURATION_S} s, got {duration}")
     noise = ImuNoise.from_spec(imu_noise) if real_imu is None else None
     samples = load_trajectory(trajectory)

@@ -14,21 +14,20 @@ straddles a knot.
 from __future__ import annotations
 
 import math
+from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
+from linnet import timeunits
+from linnet.fileio import InputError, read_text_file
 from linnet.sim.rotations import exp_so3, matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 
 BUILTIN_PREFIX = "builtin:"
 BUILTIN_NAMES = ("loop",)
 GRAVITY_W = np.array([0.0, 0.0, -9.81])  # m/s^2, W has z up (DESIGN A3)
-
-
-class InputError(ValueError):
-    """A trajectory / IMU file or argument the simulator cannot use; the message names the file and line."""
 
 
 @dataclass
@@ -48,7 +47,7 @@ class TrajectorySamples:
 
 # ----------------------------------------------------------------------------------------------------------- loading
 def load_trajectory(spec: str) -> TrajectorySamples:
-    """A path (TUM ``t x y z qx qy qz qw`` in seconds, or EuRoC csv ``t_ns, p, q_wxyz[, v, b_w, b_a]``) or the name
+    """A path (TUM ``t x y z qx qy qz qw`` in seconds, or ms / us / ns judged by magnitude, or EuRoC csv ``t_ns, p, q_wxyz[, v, b_w, b_a]``) or the name
     of a built-in trajectory (``builtin:loop``)."""
     if spec.startswith(BUILTIN_PREFIX):
         name = spec[len(BUILTIN_PREFIX):]
@@ -57,35 +56,33 @@ def load_trajectory(spec: str) -> TrajectorySamples:
         raise InputError(f"unknown built-in trajectory '{spec}' (known: "
                          + ", ".join(BUILTIN_PREFIX + n for n in BUILTIN_NAMES) + ")")
     path = Path(spec)
-    if not path.is_file():
-        raise InputError(f"{path}: trajectory file not found")
-    rows, lines, comma = [], [], None
-    with open(path, "r", encoding="utf-8") as f:
-        for lineno, raw in enumerate(f, 1):
-            line = raw.strip()
-            if not line or line.startswith("#") or line[0].isalpha():
-                continue
-            if comma is None:
-                comma = "," in line
-            fields = line.split(",") if comma else line.split()
-            try:
-                rows.append([float(x) for x in fields])
-            except ValueError:
-                raise InputError(f"{path}:{lineno}: cannot parse '{line[:60]}'") from None
-            lines.append(lineno)
-            if len(rows[-1]) != len(rows[0]):
-                raise InputError(f"{path}:{lineno}: {len(rows[-1])} columns, expected {len(rows[0])}")
+    text = read_text_file(path, "a trajectory file", name_if_missing=True)
+    rows, lines, tokens0, comma = [], [], [], None
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("#") or line[0].isalpha():
+            continue
+        if comma is None:
+            comma = "," in line
+        fields = line.split(",") if comma else line.split()
+        try:
+            rows.append([float(x) for x in fields])
+        except ValueError:
+            raise InputError(f"{path}:{lineno}: cannot parse '{line[:60]}'") from None
+        lines.append(lineno)
+        tokens0.append(fields[0].strip())
+        if len(rows[-1]) != len(rows[0]):
+            raise InputError(f"{path}:{lineno}: {len(rows[-1])} columns, expected {len(rows[0])}")
+        if not all(math.isfinite(x) for x in rows[-1]):
+            raise InputError(f"{path}:{lineno}: non-finite value")
     if len(rows) < 4:
         raise InputError(f"{path}: need at least 4 poses, found {len(rows)}")
     ncol = len(rows[0])
     if comma:
         if ncol not in (8, 17):
             raise InputError(f"{path}:{lines[0]}: EuRoC csv needs 8 or 17 columns, found {ncol}")
-        # Integer nanoseconds: re-read the first column as int to keep every digit.
-        with open(path, "r", encoding="utf-8") as f:
-            t_ns = np.array([int(line.split(",", 1)[0]) for line in f
-                             if line.strip() and not line.startswith("#") and not line.strip()[0].isalpha()],
-                            dtype=np.int64)
+        # Integer nanoseconds, every digit kept (a time with a decimal point is read by its magnitude).
+        t_ns = _times_ns(path, lines, tokens0, integer_ns="." not in tokens0[0])
         data = np.array(rows)
         p, q = data[:, 1:4], data[:, 4:8]
         bg = data[:, 11:14] if ncol == 17 else None
@@ -94,9 +91,11 @@ def load_trajectory(spec: str) -> TrajectorySamples:
         if ncol != 8:
             raise InputError(f"{path}:{lines[0]}: TUM needs 8 columns (t x y z qx qy qz qw), found {ncol}")
         data = np.array(rows)
-        t_ns = np.array([int(round(t * 1e9)) for t in data[:, 0]], dtype=np.int64)
-        # Seconds with 5 decimals lose the sub-10-microsecond part; round to the nearest 10 us so 200 Hz stays regular.
-        t_ns = (np.round(t_ns / 1e4) * 1e4).astype(np.int64)
+        t_ns = _times_ns(path, lines, tokens0, integer_ns=False)
+        if timeunits.unit_of(rows[0][0])[0] == "s":
+            # Seconds with 5 decimals lose the sub-10-microsecond part; round to the nearest 10 us so 200 Hz stays
+            # regular.
+            t_ns = (np.round(t_ns / 1e4) * 1e4).astype(np.int64)
         p, q = data[:, 1:4], data[:, [7, 4, 5, 6]]
         bg = ba = None
     bad = np.nonzero(np.diff(t_ns) <= 0)[0]
@@ -107,6 +106,22 @@ def load_trajectory(spec: str) -> TrajectorySamples:
         i = int(np.argmax(np.abs(norms - 1.0)))
         raise InputError(f"{path}:{lines[i]}: quaternion norm {norms[i]:.4f} is not 1")
     return TrajectorySamples(t_ns, p.copy(), q / norms[:, None], bg, ba, source=str(path))
+
+
+def _times_ns(path: Path, lines: list, tokens: list, integer_ns: bool) -> np.ndarray:
+    """The time column in int64 ns, exactly (decimal arithmetic): integer ns for a EuRoC csv (`integer_ns`), otherwise
+    in the unit given by the magnitude of the first time stamp (linnet.timeunits: s, ms, us or ns)."""
+    scale = 1 if integer_ns else timeunits.unit_of(float(tokens[0]))[1]
+    t = []
+    for number, tok in zip(lines, tokens):
+        try:
+            value = int((Decimal(tok) * scale).to_integral_value(rounding=ROUND_HALF_EVEN))
+        except (InvalidOperation, ValueError):
+            raise InputError(f"{path}:{number}: bad time stamp '{tok}'") from None
+        if abs(value) >= 2**63:
+            raise InputError(f"{path}:{number}: time stamp '{tok}' is out of the int64 ns range")
+        t.append(value)
+    return np.array(t, dtype=np.int64)
 
 
 def _smootherstep_integral(x: np.ndarray) -> np.ndarray:

@@ -63,9 +63,13 @@ struct Config {
   /// Overrides keys present in the YAML file / text on this config.
   void merge(const std::string& path);
   void mergeYaml(const std::string& text, const std::string& source = "<yaml>");
+  /// Sets one key: `dotted_key` like "pipeline.use_lines", `yaml_value` a YAML value ("true", "0.5", "[1, 2]").
+  /// Errors name `source` (default: the key) without a line number: the key was not in a file.
+  void set(const std::string& dotted_key, const std::string& yaml_value, const std::string& source = "");
   /// Writes every key with its documentation; load(save(c)) == c.
   void save(const std::string& path) const;
-  std::string toYaml() const;
+  /// The YAML text of every key; with `comments`, each key's documentation and range too (as save writes).
+  std::string toYaml(bool comments = false) const;
   /// Throws ConfigError naming the first key out of range.
   void validate() const;
 };

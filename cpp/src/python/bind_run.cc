@@ -1,0 +1,98 @@
+// Bindings of whole runs: a EuRoC folder (run_euroc), any other source fed sample by sample (StreamRun), and the
+// RunSummary both return.
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <optional>
+#include <string>
+
+#include "bind_arrays.h"
+#include "bind_images.h"
+#include "linnet/pipeline/dataset_runner.h"
+
+namespace py = pybind11;
+
+namespace linnet::python {
+
+void bindRun(py::module_& m) {
+  py::class_<RunSummary>(m, "RunSummary", "Result of a run (a dataset, or a StreamRun)")
+      .def_readonly("frames", &RunSummary::frames)
+      .def_readonly("processed_frames", &RunSummary::processed_frames)
+      .def_readonly("frames_with_pose", &RunSummary::frames_with_pose)
+      .def_readonly("dropped_frames", &RunSummary::dropped_frames)
+      .def_readonly("init_time_s", &RunSummary::init_time_s)
+      .def_readonly("reinitialisations", &RunSummary::reinitialisations)
+      .def_readonly("wall_time_s", &RunSummary::wall_time_s)
+      .def_readonly("sequence_duration_s", &RunSummary::sequence_duration_s)
+      .def_readonly("real_time_factor", &RunSummary::real_time_factor)
+      .def_readonly("cpu_time_s", &RunSummary::cpu_time_s)
+      .def_readonly("cpu_real_time_factor", &RunSummary::cpu_real_time_factor)
+      .def_readonly("image_load_cpu_s", &RunSummary::image_load_cpu_s)
+      .def_readonly("first_frame_t_ns", &RunSummary::first_frame_t)
+      .def_readonly("last_frame_t_ns", &RunSummary::last_frame_t)
+      .def_readonly("first_imu_t_ns", &RunSummary::first_imu_t)
+      .def_readonly("last_imu_t_ns", &RunSummary::last_imu_t)
+      .def_readonly("imu_samples", &RunSummary::imu_samples)
+      .def_readonly("stereo", &RunSummary::stereo)
+      .def_readonly("warnings", &RunSummary::warnings)
+      .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
+           py::arg("only_with_pose") = true)
+      .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },
+           "dict: points (N x 3), lines (M x 2 x 3), line_ids (M), line_observations (M); W, metres")
+      .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
+      .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
+           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv into out_dir");
+
+  py::class_<StreamRun>(m, "StreamRun",
+                        "A run fed sample by sample in time order (ROS bags, drivers): add_imu / add_frame, then "
+                        "finish() -> RunSummary, as run_euroc gives for a folder")
+      .def(py::init<const Config&, double>(), py::arg("config"), py::arg("realtime_speed") = 0.0)
+      .def("add_imu", [](StreamRun& r, std::int64_t t_ns, const py::object& acc, const py::object& gyr) {
+             r.addImu(t_ns, toVec3(acc, "acc"), toVec3(gyr, "gyr"));
+           }, py::arg("t_ns"), py::arg("acc"), py::arg("gyr"))
+      .def("add_frame", [](StreamRun& r, std::int64_t t_ns, const py::array& left, const py::object& right,
+                           double load_cpu_s) {
+             const ImageView l(left, "left");
+             std::optional<ImageView> rv;
+             if (!right.is_none()) rv.emplace(py::reinterpret_borrow<py::array>(right), "right");
+             const cv::Mat right_mat = rv ? rv->mat : cv::Mat();
+             py::gil_scoped_release release;
+             return r.addFrame(t_ns, l.mat, right_mat, load_cpu_s);
+           }, py::arg("t_ns"), py::arg("left"), py::arg("right") = py::none(), py::arg("load_cpu_s") = 0.0,
+           "A frame (uint8 gray or BGR arrays; right None for mono); load_cpu_s: CPU time spent decoding it")
+      .def("add_warning", &StreamRun::addWarning, py::arg("warning"))
+      .def("finish", [](StreamRun& r) {
+             py::gil_scoped_release release;
+             return r.finish();
+           })
+      .def_property_readonly("frames", &StreamRun::frames);
+
+  m.def("run_euroc", [](const std::string& dataset, const Config& config, int max_frames, double start_s,
+                        std::optional<py::function> progress, const std::string& camchain,
+                        const std::string& imu_yaml, double realtime_speed) {
+          RunOptions opt;
+          opt.max_frames = max_frames;
+          opt.start_s = start_s;
+          opt.open.camchain = camchain;
+          opt.open.imu_yaml = imu_yaml;
+          opt.realtime_speed = realtime_speed;
+          if (progress) {
+            auto holder = std::make_shared<py::function>(*progress);
+            opt.progress = [holder](int done, int total) {
+              py::gil_scoped_acquire gil;
+              (*holder)(done, total);
+            };
+          }
+          py::gil_scoped_release release;
+          return runEuroc(dataset, config, opt);
+        }, py::arg("dataset"), py::arg("config"), py::arg("max_frames") = -1, py::arg("start_s") = 0.0,
+        py::arg("progress") = py::none(), py::arg("camchain") = "", py::arg("imu_yaml") = "",
+        py::arg("realtime_speed") = 0.0,
+        "Runs a EuRoC folder and returns a RunSummary: blocking and deterministic, or paced by the time stamps at "
+        "realtime_speed (> 0, real-time mode: late frames dropped). camchain / imu_yaml: Kalibr files to use "
+        "instead of the folder's sensor.yaml.");
+}
+
+}  // namespace linnet::python

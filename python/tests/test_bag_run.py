@@ -1,0 +1,125 @@
+"""`linnet run BAG`: ROS1 and ROS2 bags written from a EuRoC folder run to the same trajectory as the folder, with the
+folder's calibration or with the same calibration as Kalibr files."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+
+LINNET = [sys.executable, "-m", "linnet.cli"]
+MICRO = "euroc/V1_01_easy_micro"
+FRAMES = 40
+
+
+def _run(*args):
+    return subprocess.run(LINNET + [str(a) for a in args], capture_output=True, text=True, timeout=600)
+
+
+def _opencv_yaml(path):
+    text = path.read_text()
+    return yaml.safe_load(text.split("\n", 1)[1] if text.startswith("%YAML") else text)
+
+
+def _kalibr_files(euroc, out):
+    """The EuRoC folder's calibration as a Kalibr camchain (T_cam_imu = T_B_C^-1, B = IMU) and imu.yaml."""
+    chain = {}
+    for i in (0, 1):
+        s = _opencv_yaml(euroc / "mav0" / f"cam{i}" / "sensor.yaml")
+        T_B_C = np.array(s["T_BS"]["data"], float).reshape(4, 4)
+        chain[f"cam{i}"] = {
+            "T_cam_imu": np.linalg.inv(T_B_C).tolist(),
+            "camera_model": "pinhole",
+            "intrinsics": s["intrinsics"],
+            "distortion_model": "radtan",
+            "distortion_coeffs": s["distortion_coefficients"],
+            "resolution": s["resolution"],
+            "rostopic": f"/cam{i}/image_raw",
+        }
+    imu = {k: v for k, v in _opencv_yaml(euroc / "mav0" / "imu0" / "sensor.yaml").items()
+           if k.endswith(("noise_density", "random_walk"))}
+    imu.update(rostopic="/imu0", update_rate=200.0)
+    (out / "camchain.yaml").write_text(yaml.safe_dump(chain))
+    (out / "imu.yaml").write_text(yaml.safe_dump({"imu0": imu}))
+    return out / "camchain.yaml", out / "imu.yaml"
+
+
+@pytest.fixture(scope="module")
+def folder_run(tmp_path_factory, shared_data_module):
+    euroc = shared_data_module(MICRO)
+    out = tmp_path_factory.mktemp("folder")
+    r = _run("run", euroc, "--out", out / "run", "--quiet", "--max-frames", FRAMES)
+    assert r.returncode == 0, r.stderr
+    return euroc, (out / "run" / "trajectory.tum").read_text()
+
+
+@pytest.fixture(scope="module")
+def shared_data_module():
+    from conftest import require_shared_data
+
+    return require_shared_data
+
+
+@pytest.mark.parametrize("version, storage", [(1, "sqlite3"), (2, "sqlite3"), (2, "mcap")])
+def test_bag_runs_to_the_folder_trajectory(tmp_path, folder_run, version, storage):
+    from linnet.bags import write_bag_from_euroc
+
+    euroc, expected = folder_run
+    bag = write_bag_from_euroc(euroc, tmp_path / ("b.bag" if version == 1 else "b2"), version=version,
+                               max_frames=FRAMES, storage=storage)
+    r = _run("run", bag, "--calib", euroc, "--out", tmp_path / "run", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "run" / "trajectory.tum").read_text() == expected
+
+
+def test_bag_with_kalibr_calibration(tmp_path, folder_run):
+    from linnet.bags import write_bag_from_euroc
+
+    euroc, expected = folder_run
+    bag = write_bag_from_euroc(euroc, tmp_path / "b.bag", version=1, max_frames=FRAMES)
+    camchain, imu = _kalibr_files(euroc, tmp_path)
+    r = _run("run", bag, "--calib", camchain, "--calib", imu, "--out", tmp_path / "run", "--quiet")
+    assert r.returncode == 0, r.stderr
+    got = np.loadtxt(tmp_path / "run" / "trajectory.tum")
+    ref = np.loadtxt(expected.splitlines())
+    assert got.shape == ref.shape and np.max(np.abs(got[:, 1:4] - ref[:, 1:4])) < 1e-6
+
+
+def test_folder_with_kalibr_calibration_matches_sensor_yaml(tmp_path, folder_run):
+    euroc, expected = folder_run
+    camchain, imu = _kalibr_files(euroc, tmp_path)
+    r = _run("run", euroc, "--calib", camchain, "--calib", imu, "--out", tmp_path / "run", "--quiet",
+             "--max-frames", FRAMES)
+    assert r.returncode == 0, r.stderr
+    got = np.loadtxt(tmp_path / "run" / "trajectory.tum")
+    ref = np.loadtxt(expected.splitlines())
+    assert got.shape == ref.shape and np.max(np.abs(got[:, 1:4] - ref[:, 1:4])) < 1e-6
+
+
+def test_bag_errors(tmp_path, folder_run):
+    from linnet.bags import write_bag_from_euroc
+
+    euroc, _ = folder_run
+    bag = write_bag_from_euroc(euroc, tmp_path / "b.bag", version=1, max_frames=5)
+    r = _run("run", bag, "--out", tmp_path / "o")
+    assert r.returncode == 2 and "holds no calibration" in r.stderr
+    r = _run("run", bag, "--calib", euroc, "--imu-topic", "/imu9", "--out", tmp_path / "o")
+    assert r.returncode == 1 and "/imu9" in r.stderr and "/imu0" in r.stderr and "Traceback" not in r.stderr
+    not_a_bag = tmp_path / "x.bag"
+    not_a_bag.write_text("hello")
+    r = _run("run", not_a_bag, "--calib", euroc, "--out", tmp_path / "o")
+    assert r.returncode == 1 and "x.bag" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_realtime_replay_paces_and_reports_drops(tmp_path, folder_run):
+    euroc, _ = folder_run
+    r = _run("run", euroc, "--out", tmp_path / "run", "--quiet", "--max-frames", 20, "--realtime", "4")
+    assert r.returncode == 0, r.stderr
+    import json
+
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    duration = summary["sequence_duration_s"]
+    assert summary["wall_time_s"] >= 0.9 * (duration - 0.05) / 4.0
+    assert summary["frames"] == 20 and summary["processed_frames"] + summary["dropped_frames"] >= 20
