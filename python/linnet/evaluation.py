@@ -39,6 +39,7 @@ __all__ = [
     "ape",
     "rpe",
     "path_length",
+    "time_slice",
     "POSE_RELATIONS",
     "ALIGNMENTS",
 ]
@@ -274,6 +275,12 @@ def _as_trajectory(traj: TrajectoryLike) -> Trajectory:
     raise TypeError(f"expected a Trajectory or a file path, got {type(traj).__name__}")
 
 
+def time_slice(traj: Trajectory, t0_ns: int, t1_ns: int) -> Trajectory:
+    """The poses of `traj` with t0_ns <= t <= t1_ns (e.g. the ground truth over an estimate's time span)."""
+    keep = (traj.t_ns >= t0_ns) & (traj.t_ns <= t1_ns)
+    return Trajectory(traj.t_ns[keep], traj.positions[keep], traj.quaternions_wxyz[keep], traj.name)
+
+
 def path_length(traj: TrajectoryLike) -> float:
     """Length of the polyline through the positions, in metres."""
     p = _as_trajectory(traj).positions
@@ -481,11 +488,19 @@ def rpe(
     est, gt = _as_trajectory(est), _as_trajectory(gt)
     evo_est, evo_gt, t_est, t_gt = _associate(est, gt, t_max_diff)
     rta = _align(evo_est, evo_gt, align)
+    # Deltas the run cannot fit: one clear sentence rather than evo's message about an empty index list.
+    travelled = float(evo_gt.path_length)
+    if unit == Unit.meters and travelled <= delta:
+        raise InputError(f"the ground truth travels {travelled:.3f} m over the estimate's span, not more than the RPE "
+                         f"delta {delta:g} m: choose a smaller delta")
+    if unit == Unit.frames and evo_est.num_poses <= delta:
+        raise InputError(f"the run has {evo_est.num_poses} associated poses, not more than the RPE delta {delta:g} "
+                         "frames: choose a smaller delta")
     metric = metrics.RPE(relation, delta=delta, delta_unit=unit, all_pairs=all_pairs)
     try:
         metric.process_data((copy.deepcopy(evo_gt), copy.deepcopy(evo_est)))
     except EvoException as e:
-        raise InputError(f"RPE with delta {delta} {delta_unit}: {e}") from None
+        raise InputError(f"RPE with delta {delta:g} {delta_unit}: {e}") from None
     aligned = _from_evo(evo_est, t_est, est.name)
     reference = _from_evo(evo_gt, t_gt, gt.name)
     t_err = t_est[np.asarray(metric.delta_ids, dtype=np.int64)]

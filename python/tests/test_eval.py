@@ -183,7 +183,7 @@ def test_rpe_on_rigid_offset_and_frames_delta():
 def test_rpe_delta_longer_than_path_is_an_input_error():
     t, p, q = helix(n=20)
     gt = ev.trajectory_from_arrays(t, p, q)
-    with pytest.raises(ev.InputError, match="RPE with delta 100"):
+    with pytest.raises(ev.InputError, match=r"travels .* m over the estimate.s span, not more than the RPE delta 100 m"):
         ev.rpe(gt, gt, delta=100.0)
 
 

@@ -310,3 +310,32 @@ def test_simulate_refuses_a_noise_file_without_noise_keys(tmp_path):
 
 def test_run_refuses_negative_max_frames(shared_data):
     _one_line(_run("run", shared_data(MICRO), "--max-frames", "-5"), 2, "--max-frames")
+
+
+def _with_imu_gap(src: Path, dst: Path, after_frame: int, gap_s: float) -> Path:
+    data = _copy_dataset(src, dst)
+    shutil.copytree(src / "mav0" / "state_groundtruth_estimate0", data / "mav0" / "state_groundtruth_estimate0")
+    frames = (data / "mav0" / "cam0" / "data.csv").read_text().splitlines()[1:]
+    t0 = int(frames[after_frame].split(",")[0]) + 2_000_000
+    t1 = t0 + int(gap_s * 1e9)
+    imu = data / "mav0" / "imu0" / "data.csv"
+    rows = imu.read_text().splitlines()
+    imu.write_text("\n".join([rows[0]] + [r for r in rows[1:] if not t0 < int(r.split(",")[0]) < t1]) + "\n")
+    return data
+
+
+@pytest.mark.parametrize("gap_s, reinits", [(0.2, 0), (1.0, 1)])
+def test_imu_gaps_are_bridged_or_reinitialised_not_fatal(shared_data, tmp_path, gap_s, reinits):
+    data = _with_imu_gap(shared_data(MICRO), tmp_path / "gap", 50, gap_s)
+    r = _run("run", data, "--out", tmp_path / "o", "--quiet")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["reinitialisations"] == reinits and summary["status"] == "ok"
+    assert summary["ape"]["rmse_m"] < 0.01
+    if reinits == 0:
+        assert summary["frames_with_pose"] == summary["processed_frames"] - 5  # as without a gap (5 to initialise)
+    # The longest bridged gap is a config key that --set accepts.
+    r = _run("run", data, "--out", tmp_path / "o2", "--quiet", "--max-frames", "60",
+             "--set", "estimator.imu_gap.max_bridge_s=2.0")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "o2" / "summary.json").read_text())["reinitialisations"] == 0

@@ -62,7 +62,14 @@ EstimatorCore::EstimatorCore(const EstimatorOptions& options, const ImuNoise& no
       points_(options.solver, T_B_C0, T_B_C1),
       lines_(options.lines, options.solver.focal_length, T_B_C0, T_B_C1),
       huber_(options.solver.huber_px),
-      line_huber_(options.lines.huber_px) {}
+      line_huber_(options.lines.huber_px) {
+  preint_options_.gap_dt_s = options.imu_gap.gap_periods / noise.rate_hz;
+  preint_options_.gap_acc_sigma = options.imu_gap.acc_sigma;
+  preint_options_.gap_gyr_sigma = options.imu_gap.gyr_sigma;
+  ImuBufferOptions buffer;
+  buffer.max_gap_s = 10.0;  // longer gaps are handled here (restartAfterImuGap), not refused
+  imu_ = ImuBuffer(buffer);
+}
 
 void EstimatorCore::observeLines(FrameId frame, const FrameObservations& obs) {
   if (!options_.lines.enabled || obs.lines.empty()) return;
@@ -76,7 +83,44 @@ void EstimatorCore::clearLandmarks() {
   lines_.clear();
 }
 
-void EstimatorCore::addImu(const ImuSample& s) { imu_.append(s); }
+void EstimatorCore::addImu(const ImuSample& s) {
+  if (!imu_.empty() && s.t > imu_.endTime() && toSeconds(s.t - imu_.endTime()) > options_.imu_gap.max_bridge_s) {
+    // Too long to integrate: restart the buffer after the gap; the next frame re-initialises (restartAfterImuGap).
+    if (imu_gap_start_ < 0) imu_gap_start_ = imu_.endTime();
+    imu_gap_end_ = s.t;
+    imu_ = ImuBuffer(imu_.options());
+  }
+  imu_.append(s);
+}
+
+void EstimatorCore::restartAfterImuGap(Timestamp t) {
+  std::optional<NavState> s;
+  if (mode_ == Mode::kTracking && !window_.empty()) {
+    const WindowFrame& f = window_.newest();
+    s = NavState{};
+    s->t = f.t;
+    s->T_W_B = f.T_W_B();
+    s->v_W = f.v();
+    s->b_a = f.ba();
+    s->b_g = f.bg();
+  } else if (last_good_) {
+    s = last_good_;
+  }
+  window_.clear();
+  clearLandmarks();
+  priors_.clear();
+  mode_ = Mode::kWaitingForFirstFrame;
+  last_good_.reset();
+  if (s) {
+    // Constant velocity over the gap, to the first sample after it (where the IMU buffer starts again).
+    s->T_W_B.p += s->v_W * toSeconds(imu_gap_end_ - s->t);
+    s->t = imu_gap_end_;
+    last_good_ = s;
+    lost_since_ = t;
+    ++reinitialisations_;
+  }
+  imu_gap_start_ = imu_gap_end_ = -1;
+}
 
 EstimatorOutput EstimatorCore::output(const WindowFrame& f) const {
   EstimatorOutput out;
@@ -99,7 +143,7 @@ NavState EstimatorCore::predictFrom(const WindowFrame& f, Timestamp t) const {
   s.t = t;
   s.b_a = f.ba();
   s.b_g = f.bg();
-  Preintegration pre(noise_, s.b_a, s.b_g);
+  Preintegration pre(noise_, s.b_a, s.b_g, preint_options_);
   for (const ImuSample& m : imu_.samplesBetween(f.t, t)) pre.push(m);
   const Pose T = f.T_W_B();
   const double dt = pre.sumDt();
@@ -110,7 +154,7 @@ NavState EstimatorCore::predictFrom(const WindowFrame& f, Timestamp t) const {
 
 WindowFrame& EstimatorCore::pushPredicted(Timestamp t) {
   const WindowFrame& prev = window_.newest();
-  auto pre = std::make_unique<Preintegration>(noise_, prev.ba(), prev.bg());
+  auto pre = std::make_unique<Preintegration>(noise_, prev.ba(), prev.bg(), preint_options_);
   for (const ImuSample& m : imu_.samplesBetween(prev.t, t)) pre->push(m);
   const NavState s = predictFrom(prev, t);
   WindowFrame& f = window_.push(t);
@@ -301,6 +345,11 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
     o.solver_ms = solver_ms_;
     return o;
   };
+  if (imu_gap_end_ >= 0) restartAfterImuGap(obs.t);
+  if (!imu_.empty() && obs.t < imu_.startTime()) {  // a frame inside an IMU gap that was not bridged: no pose
+    out.status = last_good_ ? TrackingStatus::kLost : TrackingStatus::kInitialising;
+    return finish(out);
+  }
   if (!T_B_C1_.has_value() || !obs.stereo) return finish(out);  // monocular: no initialiser yet
 
   if (mode_ == Mode::kWaitingForFirstFrame) {

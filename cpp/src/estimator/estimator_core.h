@@ -87,6 +87,9 @@ class EstimatorCore {
   void slideWindow();
   void marginaliseOldest();
   void dropFrame(int index);
+  /// After an IMU gap too long to bridge: drop the window and restart from the last good pose (propagated at
+  /// constant velocity over the gap), counted as a re-initialisation.
+  void restartAfterImuGap(Timestamp t);
 
   EstimatorOptions options_;
   ImuNoise noise_;
@@ -94,7 +97,10 @@ class EstimatorCore {
   std::optional<Pose> T_B_C1_;
   Vec3 g_W_;
 
+  PreintegrationOptions preint_options_;  // with the gap noise of options_.imu_gap
   ImuBuffer imu_;
+  Timestamp imu_gap_start_ = -1;        // start of a gap longer than imu_gap.max_bridge_s, until the next frame
+  Timestamp imu_gap_end_ = -1;
   Window window_;
   PointLandmarks points_;
   LineLandmarks lines_;

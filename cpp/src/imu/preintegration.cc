@@ -98,8 +98,13 @@ void Preintegration::integrateStep(const ImuSample& s0, const ImuSample& s1) {
   G.block<3, 3>(kBa, 12) = Mat3::Identity();
   G.block<3, 3>(kBg, 15) = Mat3::Identity();
 
-  const double var_a = 2.0 * noise_.acc_noise_density * noise_.acc_noise_density / dt;
-  const double var_g = 2.0 * noise_.gyr_noise_density * noise_.gyr_noise_density / dt;
+  double var_a = 2.0 * noise_.acc_noise_density * noise_.acc_noise_density / dt;
+  double var_g = 2.0 * noise_.gyr_noise_density * noise_.gyr_noise_density / dt;
+  if (options_.gap_dt_s > 0.0 && dt > options_.gap_dt_s) {
+    // Each end's noise enters with weight dt / 2 (G above): 2 sigma^2 per end gives (sigma dt)^2 in velocity.
+    var_a += 2.0 * options_.gap_acc_sigma * options_.gap_acc_sigma;
+    var_g += 2.0 * options_.gap_gyr_sigma * options_.gap_gyr_sigma;
+  }
   const double var_ba = noise_.acc_random_walk * noise_.acc_random_walk * dt;
   const double var_bg = noise_.gyr_random_walk * noise_.gyr_random_walk * dt;
   Eigen::Matrix<double, 18, 1> q;

@@ -279,3 +279,36 @@ TEST(Preintegration, OutOfRangeOptionsAreConfigErrorsNamingTheKey) {
 
 }  // namespace
 }  // namespace linnet
+
+namespace linnet {
+
+// A step longer than gap_dt_s adds the unknown motion's variance: (gap_acc_sigma dt)^2 in velocity and
+// (gap_gyr_sigma dt)^2 in rotation, on top of what the same step gives without gap noise; normal steps are unchanged.
+TEST(Preintegration, GapStepsInflateTheCovarianceByTheUnknownMotion) {
+  const ImuNoise noise;
+  PreintegrationOptions plain, gap = plain;
+  gap.gap_dt_s = 0.015;
+  gap.gap_acc_sigma = 2.0;
+  gap.gap_gyr_sigma = 0.5;
+  const Vec3 a(0.1, -0.2, 9.81), w(0.05, 0.02, -0.1);
+  // A 0.1 s step: one sample at 0, the next at 100 ms.
+  const std::vector<ImuSample> step = {{0, a, w}, {100 * kMs, a, w}};
+  const Preintegration with_gap(step, noise, Vec3::Zero(), Vec3::Zero(), gap);
+  const Preintegration without(step, noise, Vec3::Zero(), Vec3::Zero(), plain);
+  const double dt = 0.1;
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(with_gap.covariance()(Preintegration::kV + k, Preintegration::kV + k) -
+                    without.covariance()(Preintegration::kV + k, Preintegration::kV + k),
+                std::pow(2.0 * dt, 2), 2e-2 * std::pow(2.0 * dt, 2));  // + the gyro gap noise rotating a (1.5 %)
+    EXPECT_NEAR(with_gap.covariance()(Preintegration::kR + k, Preintegration::kR + k) -
+                    without.covariance()(Preintegration::kR + k, Preintegration::kR + k),
+                std::pow(0.5 * dt, 2), 1e-2 * std::pow(0.5 * dt, 2));
+  }
+  // Regular 5 ms steps are below gap_dt_s: identical covariance.
+  const auto regular = constantSamples(a, w, 0, 100 * kMs, 5 * kMs);
+  const Preintegration r_gap(regular, noise, Vec3::Zero(), Vec3::Zero(), gap);
+  const Preintegration r_plain(regular, noise, Vec3::Zero(), Vec3::Zero(), plain);
+  EXPECT_EQ(r_gap.covariance(), r_plain.covariance());
+}
+
+}  // namespace linnet

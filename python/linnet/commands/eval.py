@@ -38,10 +38,18 @@ def _report(est_path, gt_path, est, gt, ape_res, rpe_res, rpe_reason) -> dict:
         "estimate_path_length_m": ev.path_length(est),
         "ground_truth_path_length_m": ev.path_length(gt),
         "associated_ground_truth_path_length_m": ev.path_length(ape_res.reference),
+        "ground_truth_over_estimate_path_length_m": ev.path_length(_gt_over_estimate(gt, est, ape_res)),
         "ape": {k: _json_number(v) for k, v in ape_stats.items()},
         "rpe": None if rpe_res is None else {k: _json_number(v) for k, v in rpe_res.stats().items()},
         "rpe_error": rpe_reason,
     }
+
+
+def _gt_over_estimate(gt, est, ape_res):
+    """The ground truth over the estimate's time span (plus the association tolerance): what plots and path lengths
+    compare the estimate with, rather than a whole flight the estimate covers a part of."""
+    margin = int(round(ape_res.t_max_diff_s * 1e9))
+    return ev.time_slice(gt, int(est.t_ns[0]) - margin, int(est.t_ns[-1]) + margin)
 
 
 def _orientation_notes(gt, ape_relation: str, rpe_relation: str) -> list:
@@ -81,8 +89,9 @@ def _print_table(report: dict, ape_res, rpe_res, rpe_reason) -> None:
     a = ape_res
     relations = f"APE {a.pose_relation}" + (f", RPE {rpe_res.pose_relation}" if rpe_res is not None else "")
     console.print(f"{relations}; align {a.align} (scale {a.scale:.6f}); t_max_diff {a.t_max_diff_s:g} s")
-    console.print(f"path length: estimate {report['estimate_path_length_m']:.3f} m, "
-                  f"ground truth {report['ground_truth_path_length_m']:.3f} m")
+    console.print(f"path length: estimate {report['estimate_path_length_m']:.3f} m, ground truth over the estimate's "
+                  f"span {report['ground_truth_over_estimate_path_length_m']:.3f} m "
+                  f"(whole file {report['ground_truth_path_length_m']:.3f} m)")
     if rpe_res is None:
         console.print(f"RPE not computed: {rpe_reason}")
 
@@ -125,7 +134,8 @@ def eval_command(est, gt, align, t_max_diff, pose_relation, rpe_delta, rpe_relat
     if plot_dir is not None:
         from linnet import plots
 
-        written = plots.plot_all(ape_res, plot_dir, rpe_result=rpe_res, gt_full=gt_traj)
+        written = plots.plot_all(ape_res, plot_dir, rpe_result=rpe_res,
+                                 gt_full=_gt_over_estimate(gt_traj, est_traj, ape_res))
         report["plots"] = [str(p) for p in written]
         click.echo(f"plots: {', '.join(str(p) for p in written)}")
     if json_file is not None:

@@ -84,6 +84,27 @@ struct FailureOptions {
   }
 };
 
+/// Gaps in the IMU stream (dropped samples, a paused driver). A step longer than `gap_periods` sample periods is
+/// bridged by linear interpolation of its end samples, with the unknown motion in between modelled as an extra
+/// acceleration / angular-rate noise of `acc_sigma` / `gyr_sigma` over the gap (PreintegrationOptions::gap_*). A gap
+/// longer than `max_bridge_s` is not integrated: the window is dropped and the estimator re-initialises after it
+/// (counted as a re-initialisation) from the last good pose.
+struct ImuGapOptions {
+  double gap_periods = 3.0;   // a step longer than this many sample periods (1 / imu.rate_hz) is a gap
+  double max_bridge_s = 0.5;  // longest gap bridged by interpolation, s; longer: re-initialise after it
+  double acc_sigma = 2.0;     // std of the unknown acceleration over a bridged gap, m/s^2
+  double gyr_sigma = 0.5;     // std of the unknown angular rate over a bridged gap, rad/s
+
+  template <class V>
+  void visit(V& v) {
+    v("gap_periods", gap_periods, "a step longer than this many IMU sample periods is a gap", 1.0, 1000.0);
+    v("max_bridge_s", max_bridge_s, "longest IMU gap bridged by interpolation (longer: re-initialise), s", 0.0,
+      10.0);
+    v("acc_sigma", acc_sigma, "unknown acceleration over a bridged gap, m/s^2", 0.0, 100.0);
+    v("gyr_sigma", gyr_sigma, "unknown angular rate over a bridged gap, rad/s", 0.0, 100.0);
+  }
+};
+
 /// Back-end solver and measurement model.
 struct SolverOptions {
   std::string engine = "schur_lm";   // per-frame window solve: "schur_lm" (Linnet's Levenberg-Marquardt with the
@@ -203,11 +224,13 @@ struct EstimatorOptions {
   FailureOptions failure;
   LineOptions lines;
   ImuWeightOptions imu;
+  ImuGapOptions imu_gap;
 
   template <class V>
   void visit(V& v) {
     v("window_size", window_size, "keyframes in the sliding window", 2, 100);
     v.section("imu", imu);
+    v.section("imu_gap", imu_gap);
     v.section("solver", solver);
     v.section("keyframe", keyframe);
     v.section("init", init);

@@ -40,11 +40,20 @@ struct PreintegrationOptions {
   // GTSAM's integrationCovariance. Without it, alpha and beta of a one- or two-step preintegration are almost
   // perfectly correlated and the IMU factor's information reaches ~1e20 in that direction.
   double integration_noise = 1e-5;
+  // A step longer than gap_dt_s (0: never) is a gap in the samples: the motion in between is unknown, so the step
+  // gets an extra acceleration / angular-rate noise of gap_acc_sigma (m/s^2) / gap_gyr_sigma (rad/s), constant over
+  // the step (velocity variance += (gap_acc_sigma dt)^2, rotation variance += (gap_gyr_sigma dt)^2).
+  double gap_dt_s = 0.0;
+  double gap_acc_sigma = 0.0;
+  double gap_gyr_sigma = 0.0;
 
   template <class V>
   void visit(V& v) {
     v("integration_noise", integration_noise, "position random walk for integration error, m/sqrt(s)", 0.0,
       1.0);
+    v("gap_dt_s", gap_dt_s, "a step longer than this is a gap with extra noise (0: never), s", 0.0, 100.0);
+    v("gap_acc_sigma", gap_acc_sigma, "unknown acceleration over a gap step, m/s^2", 0.0, 100.0);
+    v("gap_gyr_sigma", gap_gyr_sigma, "unknown angular rate over a gap step, rad/s", 0.0, 100.0);
     v("max_acc_bias_change", max_acc_bias_change,
       "accelerometer bias change that triggers repropagation, m/s^2", 0.0, 10.0);
     v("max_gyr_bias_change", max_gyr_bias_change, "gyroscope bias change that triggers repropagation, rad/s",
