@@ -38,11 +38,14 @@ def load_config(dataset: Optional[PathLike], config_file: Optional[PathLike] = N
     """Defaults (or `base`) + the calibration + the keys of `config_file` + `overrides`.
 
     The calibration is the dataset's sensor.yaml files, or the Kalibr files of `calib` (then `dataset` may be None,
-    for a source without calibration files such as a ROS bag). `overrides` is YAML text, or "KEY=VALUE" strings
+    for a source without calibration files such as a ROS bag), or the cam0 / imu sections of `config_file` when it
+    has them (config/tumvi_stereo_imu.yaml: then the dataset's sensor.yaml files are not read). `overrides` is YAML text, or "KEY=VALUE" strings
     (dotted keys, YAML values) applied in order; errors name the offending "--set KEY=VALUE".
     """
     calib = calib or Calibration()
-    if dataset is not None:
+    if config_file is not None and not calib.camchain and _holds_calibration(config_file):
+        cfg = base or _linnet.Config()  # the file's cam0 / cam1 / imu sections are the calibration (merged below)
+    elif dataset is not None:
         cfg = _linnet.Config.for_euroc(str(dataset), base, camchain=calib.camchain, imu_yaml=calib.imu_yaml)
     elif calib.camchain:
         cfg = _linnet.Config.for_kalibr(calib.camchain, calib.imu_yaml, calib.rate_hz, base)
@@ -60,6 +63,19 @@ def load_config(dataset: Optional[PathLike], config_file: Optional[PathLike] = N
                 raise _linnet.UsageError(f"--set {item}: expected KEY=VALUE, e.g. pipeline.use_lines=false")
             cfg.set(key.strip(), value, source=f"--set {item}")
     return cfg
+
+
+def _holds_calibration(config_file: PathLike) -> bool:
+    """True when a config file has its own cam0 and imu sections."""
+    import yaml
+
+    from linnet.fileio import InputError, read_text_file
+
+    try:
+        doc = yaml.safe_load(read_text_file(Path(config_file), "a config file"))
+    except yaml.YAMLError as e:
+        raise InputError(f"{config_file}: invalid YAML ({e})") from None
+    return isinstance(doc, dict) and isinstance(doc.get("cam0"), dict) and isinstance(doc.get("imu"), dict)
 
 
 def run_dataset(dataset: PathLike, config: Optional[_linnet.Config] = None, *, max_frames: int = -1,

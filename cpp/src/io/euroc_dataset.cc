@@ -42,7 +42,11 @@ CameraStream readCameraStream(const fs::path& cam_dir, const EurocOpenOptions& o
                               const CameraCalibration* calib) {
   CameraStream s;
   const fs::path csv = cam_dir / "data.csv";
-  s.calib = calib ? *calib : readCameraSensorYaml((cam_dir / "sensor.yaml").string());
+  if (calib != nullptr) {
+    s.calib = *calib;
+  } else if (options.read_calibration) {
+    s.calib = readCameraSensorYaml((cam_dir / "sensor.yaml").string());
+  }
   s.rows = readCameraCsv(csv.string(), options.threads);
   s.data_dir = cam_dir / "data";
   if (options.check_images) {
@@ -147,7 +151,7 @@ EurocDataset EurocDataset::open(const std::string& path, const EurocOpenOptions&
   Pose T_B_I;
   const std::string imu_yaml =
       options.imu_yaml.empty() ? (mav0 / "imu0" / "sensor.yaml").string() : options.imu_yaml;
-  d.imu_noise_ = readImuSensorYaml(imu_yaml, &T_B_I);
+  if (options.read_calibration || !options.imu_yaml.empty()) d.imu_noise_ = readImuSensorYaml(imu_yaml, &T_B_I);
   d.imu_ = readImuCsv((mav0 / "imu0" / "data.csv").string(), options.threads);
   if (d.imu_.empty()) io::failInput((mav0 / "imu0" / "data.csv").string(), 0, "no IMU samples");
   const Pose T_I_B = T_B_I.inverse();

@@ -193,6 +193,7 @@ RunSummary StreamRun::finish() {
 RunSummary runEuroc(const std::string& dataset_path, const Config& config, const RunOptions& options) {
   EurocOpenOptions open = options.open;
   open.use_cam1 = open.use_cam1 && config.stereo;
+  open.read_calibration = false;  // the calibration is the config's; the folder gives the data (and Kalibr time shift)
   const EurocDataset ds = EurocDataset::open(dataset_path, open);
   const auto& frames = ds.frames();
   const auto& imu = ds.imu();

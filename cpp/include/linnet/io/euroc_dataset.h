@@ -48,6 +48,8 @@ struct EurocOpenOptions {
   int threads = 0;                   // csv parsing threads (0: all cores); same result for any count
   std::string camchain;  // Kalibr camchain.yaml to use instead of camN/sensor.yaml ("": sensor.yaml)
   std::string imu_yaml;  // Kalibr imu.yaml to use instead of imu0/sensor.yaml ("": sensor.yaml)
+  bool read_calibration = true;  // false: no sensor.yaml is read (the calibration comes from elsewhere, e.g. a
+                                 // config file): cam0() / cam1() / imuNoise() are defaults
 
   template <class V>
   void visit(V& v) {
@@ -58,6 +60,7 @@ struct EurocOpenOptions {
     v("threads", threads, "csv parsing threads (0: all cores)", 0, 64);
     v("camchain", camchain, "Kalibr camchain.yaml instead of camN/sensor.yaml (empty: sensor.yaml)");
     v("imu_yaml", imu_yaml, "Kalibr imu.yaml instead of imu0/sensor.yaml (empty: sensor.yaml)");
+    v("read_calibration", read_calibration, "read the sensor.yaml files (false: calibration from elsewhere)");
   }
 };
 
