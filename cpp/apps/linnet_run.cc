@@ -2,6 +2,8 @@
 //   linnet_run DATASET [--out DIR] [--config FILE] [--set section.key=value]... [--max-frames N] [--start S]
 // Runs a EuRoC folder in blocking (deterministic) mode, prints a one-line summary and, with --out, writes
 // trajectory.tum, trajectory.csv, timing.csv and map.ply (the Python CLI `linnet run` adds summary.json and the APE).
+// Exit codes as `linnet`: 0 ok, 1 bad data (the message names the file / key), 2 usage, 3 the run did not track
+// (fewer than half of the processed frames have a pose).
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -19,27 +21,6 @@ int usage(const char* msg) {
                "[--max-frames N] [--start S]\n",
                msg);
   return 2;
-}
-
-// "a.b.c=v" -> YAML text "a:\n  b:\n    c: v\n".
-std::string setToYaml(const std::string& kv) {
-  const std::size_t eq = kv.find('=');
-  if (eq == std::string::npos || eq == 0) throw linnet::UsageError("--set needs section.key=value, got '" + kv + "'");
-  const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
-  std::string yaml, indent;
-  std::size_t start = 0;
-  for (;;) {
-    const std::size_t dot = key.find('.', start);
-    const std::string part = key.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
-    if (dot == std::string::npos) {
-      yaml += indent + part + ": " + value + "\n";
-      break;
-    }
-    yaml += indent + part + ":\n";
-    indent += "  ";
-    start = dot + 1;
-  }
-  return yaml;
 }
 
 }  // namespace
@@ -77,24 +58,38 @@ int main(int argc, char** argv) {
       }
     }
     if (dataset.empty()) return usage("missing DATASET");
+    for (const std::string& kv : sets)
+      if (kv.find('=') == std::string::npos || kv.front() == '=')
+        return usage(("--set needs section.key=value, got '" + kv + "'").c_str());
+  } catch (const linnet::UsageError& e) {
+    return usage(e.what());
+  } catch (const std::exception&) {  // std::stoi / std::stod
+    return usage("a numeric option got a non-number");
+  }
+  // The run: any error from here on is about the data or the config (exit code 1, no usage text).
+  try {
     // As `linnet run`: defaults with the dataset's calibration, then the config file, then --set.
     linnet::Config cfg = linnet::configForEuroc(dataset, linnet::Config::eurocStereoImu());
     if (!config_file.empty()) cfg.merge(config_file);
-    for (const std::string& s : sets) cfg.mergeYaml(setToYaml(s), "--set " + s);
-    cfg.validate();
+    for (const std::string& kv : sets) {
+      const std::size_t eq = kv.find('=');
+      cfg.set(kv.substr(0, eq), kv.substr(eq + 1), "--set " + kv);
+    }
     const linnet::RunSummary r = linnet::runEuroc(dataset, cfg, run);
+    for (const std::string& w : r.warnings) std::fprintf(stderr, "linnet_run: warning: %s\n", w.c_str());
     std::printf("frames %d, with pose %d, init %.2f s, re-initialisations %d, wall %.2f s, CPU %.2f s (images %.2f s), "
                 "real-time factor wall %.3f CPU %.3f\n",
                 r.frames, r.frames_with_pose, r.init_time_s, r.reinitialisations, r.wall_time_s, r.cpu_time_s,
                 r.image_load_cpu_s, r.real_time_factor, r.cpu_real_time_factor);
     if (!out.empty()) linnet::writeRunOutputs(r, out);
+    if (2 * r.frames_with_pose < r.processed_frames || r.processed_frames == 0) {
+      std::fprintf(stderr, "linnet_run: tracking failed: %d of %d processed frames have a pose\n", r.frames_with_pose,
+                   r.processed_frames);
+      return 3;
+    }
     return 0;
-  } catch (const linnet::UsageError& e) {
-    return usage(e.what());
-  } catch (const std::invalid_argument&) {
-    return usage("a numeric option got a non-number");
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "linnet_run: %s\n", e.what());
+    std::fprintf(stderr, "linnet_run: error: %s\n", e.what());
     return 1;
   }
 }

@@ -74,7 +74,10 @@ def run_bag(path: PathLike, topics: BagTopics, config: _linnet.Config, *, max_fr
     total = max_frames if max_frames >= 0 else 0
 
     def add_frame(frame: FrameRecord, load_cpu_s: float) -> None:
-        run.add_frame(frame.t_ns, frame.left, frame.right, load_cpu_s)
+        try:
+            run.add_frame(frame.t_ns, frame.left, frame.right, load_cpu_s)
+        except _linnet.UsageError as e:  # e.g. an image of another size than the calibration's
+            raise BagError(f"{path}: frame at {frame.t_ns} ns on {topics.cam0}: {e}") from None
         if progress:
             progress(run.frames, total)
 

@@ -153,7 +153,8 @@ DETECTOR_DOWNSAMPLE = {"ed": 1.0, "edlines": 2.0, "fld": 2.0, "lsd": 1.0}
 
 def tracker_options(detector: Optional[str] = None, settings: Sequence[str] = ()) -> dict:
     """LineTracker option overrides from a detector name (with its resolution, DETECTOR_DOWNSAMPLE) and KEY=VALUE
-    strings (keys as in the config's `lines` section, e.g. detection.min_length_px=30; values parsed as YAML).
+    strings (keys of the config's `lines` section, with or without the "lines." prefix, e.g.
+    detection.min_length_px=30; values parsed as YAML).
     ValueError names a malformed setting; unknown keys are reported by the tracker (ConfigError naming the key)."""
     import yaml
 
@@ -167,7 +168,10 @@ def tracker_options(detector: Optional[str] = None, settings: Sequence[str] = ()
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise ValueError(f"setting '{item}' is not KEY=VALUE")
-        opts[key.strip()] = yaml.safe_load(value)
+        key = key.strip()
+        if key.startswith("lines."):  # the config's full key, as `linnet config` prints it
+            key = key[len("lines."):]
+        opts[key] = yaml.safe_load(value)
     return opts
 
 

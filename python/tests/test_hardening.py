@@ -339,3 +339,26 @@ def test_imu_gaps_are_bridged_or_reinitialised_not_fatal(shared_data, tmp_path, 
              "--set", "estimator.imu_gap.max_bridge_s=2.0")
     assert r.returncode == 0, r.stderr
     assert json.loads((tmp_path / "o2" / "summary.json").read_text())["reinitialisations"] == 0
+
+
+def test_wrong_size_image_names_the_file(shared_data, tmp_path):
+    import cv2
+
+    data = _copy_dataset(shared_data(MICRO), tmp_path / "size")
+    folder = data / "mav0" / "cam0" / "data"
+    folder.unlink()
+    shutil.copytree(shared_data(MICRO) / "mav0" / "cam0" / "data", folder)
+    name = (data / "mav0" / "cam0" / "data.csv").read_text().splitlines()[13].split(",")[1]
+    cv2.imwrite(str(folder / name), np.zeros((400, 600), np.uint8))
+    _one_line(_run("run", data, "--out", tmp_path / "o", "--quiet"), 1, name, "600x400", "752x480")
+    runner = Path(__file__).resolve().parents[2] / "build" / "cpp" / "linnet_run"
+    if runner.exists():  # the C++ runner: a data error is exit code 1 without the usage text
+        r = subprocess.run([str(runner), str(data)], capture_output=True, text=True, timeout=600)
+        assert r.returncode == 1 and name in r.stderr and "usage:" not in r.stderr, r.stderr
+
+
+def test_lines_set_accepts_the_config_key_and_names_it(shared_data, tmp_path):
+    r = _run("lines", shared_data(MICRO), "--out", tmp_path / "l", "--frames", "0:2",
+             "--set", "lines.detection.min_lenght_px=3")
+    _one_line(r, 1, "'lines.detection.min_lenght_px'")
+    assert "lines.lines." not in r.stderr

@@ -110,6 +110,13 @@ std::pair<std::size_t, std::size_t> selectFrames(const EurocDataset& ds, const R
   return {begin, last};
 }
 
+void checkImageSize(const cv::Mat& image, const CameraCalibration& calib, const std::string& path, const char* cam) {
+  if (image.cols != calib.width || image.rows != calib.height)
+    throw InputError(path, 0,
+                     "image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) + ", the " + cam +
+                         " calibration says " + std::to_string(calib.width) + "x" + std::to_string(calib.height));
+}
+
 }  // namespace
 
 StreamRun::StreamRun(const Config& config, double realtime_speed)
@@ -237,6 +244,8 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
       if (f.right_path.empty()) throw InputError(f.left_path, 0, "no right image pairs with this left image");
       right = EurocDataset::loadImage(f.right_path);
     }
+    checkImageSize(left, config.cam0, f.left_path, "cam0");
+    if (config.stereo) checkImageSize(right, config.cam1, f.right_path, "cam1");
     run.addFrame(f.t, left, right, 1e-3 * (threadCpuMs() - load0));
     if (options.progress) options.progress(run.frames(), total);
   }
