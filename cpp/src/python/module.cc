@@ -10,6 +10,7 @@ void bindSystem(py::module_& m);  // bind_system.cc: System, FrameResult, except
 void bindRun(py::module_& m);     // bind_run.cc: run_euroc, StreamRun, RunSummary
 void bindSim(py::module_& m);     // bind_sim.cc: simulator renderer
 void bindLines(py::module_& m);   // bind_lines.cc: line front-end
+void bindDriver(py::module_& m);  // bind_driver.cc: sensor-module emulator, live runs
 }  // namespace linnet::python
 
 PYBIND11_MODULE(_linnet, m) {
@@ -20,4 +21,5 @@ PYBIND11_MODULE(_linnet, m) {
   linnet::python::bindRun(m);
   linnet::python::bindSim(m);
   linnet::python::bindLines(m);
+  linnet::python::bindDriver(m);
 }

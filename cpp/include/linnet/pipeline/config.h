@@ -8,6 +8,7 @@
 #include "linnet/features/line_tracker.h"
 #include "linnet/features/point_tracker.h"
 #include "linnet/imu/imu_types.h"
+#include "linnet/io/sensor_protocol.h"
 
 namespace linnet {
 
@@ -41,6 +42,7 @@ struct Config {
   LineTrackerOptions lines;
   EstimatorOptions estimator;
   PipelineOptions pipeline;
+  SensorOptions sensor;            // the stereo-IMU sensor module's stream and driver (linnet live)
 
   template <class V>
   void visit(V& v) {
@@ -52,6 +54,7 @@ struct Config {
     v.section("lines", lines);
     v.section("estimator", estimator);
     v.section("pipeline", pipeline);
+    v.section("sensor", sensor);
   }
 
   /// EuRoC stereo-inertial defaults (calibration of the EuRoC MAV's rig).

@@ -75,6 +75,8 @@ class StreamRun {
   RunSummary finish();
   int frames() const { return summary_.frames; }
   void addWarning(std::string warning) { summary_.warnings.push_back(std::move(warning)); }
+  /// Called for every processed frame on the estimator thread (System::setCallback). Set before adding data.
+  void setCallback(std::function<void(const FrameResult&)> callback) { system_->setCallback(std::move(callback)); }
 
  private:
   Config config_;
