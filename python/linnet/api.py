@@ -65,6 +65,16 @@ def load_config(dataset: Optional[PathLike], config_file: Optional[PathLike] = N
     return cfg
 
 
+def config_value(config: _linnet.Config, dotted_key: str):
+    """The value of one config key, e.g. config_value(cfg, "estimator.init.gravity_window_s")."""
+    import yaml
+
+    node = yaml.safe_load(config.to_yaml())
+    for part in dotted_key.split("."):
+        node = node[part]
+    return node
+
+
 def _holds_calibration(config_file: PathLike) -> bool:
     """True when a config file has its own cam0 and imu sections."""
     import yaml

@@ -48,22 +48,15 @@ def frame_rate(path: PathLike, topics: BagTopics) -> float:
     return 1e9 / float(np.median(np.diff(stamps)))
 
 
-def _config_value(config: _linnet.Config, dotted_key: str):
-    import yaml
-
-    node = yaml.safe_load(config.to_yaml())
-    for part in dotted_key.split("."):
-        node = node[part]
-    return node
-
-
 def run_bag(path: PathLike, topics: BagTopics, config: _linnet.Config, *, max_frames: int = -1,
             start_s: float = 0.0, realtime_speed: float = 0.0,
             progress: Optional[Callable[[int, int], None]] = None) -> "_linnet.RunSummary":
     """Runs a bag (blocking and deterministic, or paced at `realtime_speed` > 0) and returns the RunSummary, as
     run_euroc does for a folder. `start_s` skips the first seconds of frames, `max_frames` >= 0 stops after that
     many. BagError for a bad bag; linnet errors from the System."""
-    lookback_ns = int(round((_config_value(config, "estimator.init.gravity_window_s") + 0.05) * 1e9))
+    from linnet.api import config_value
+
+    lookback_ns = int(round((config_value(config, "estimator.init.gravity_window_s") + 0.05) * 1e9))
     run = _linnet.StreamRun(config, realtime_speed)
     history: deque = deque()     # IMU samples before the first frame, within the look-back
     pending: Optional[FrameRecord] = None  # a frame waiting for an IMU sample at or after its time

@@ -39,7 +39,7 @@ std::optional<Timestamp> frameStamp(const FramePacket& frame) {
   if (n == 0) return std::nullopt;
   if (n % 2 == 1) return frame.imu[n / 2].second;
   const Timestamp a = frame.imu[n / 2 - 1].second, b = frame.imu[n / 2].second;
-  return a + (b - a) / 2;  // the mean, without overflow
+  return a / 2 + b / 2 + (a % 2 + b % 2) / 2;  // the mean (rounded toward zero), without overflow for any stamps
 }
 
 ImuPacket quantise(const ImuSample& s, std::uint32_t counter, const SensorOptions& o) {

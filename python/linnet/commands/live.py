@@ -28,7 +28,7 @@ def COMMAND(port, host, calib_files, config_file, overrides, out, record, durati
     counted), with a status line; stops after --duration, when the stream goes idle (sensor.idle_timeout_s) or on
     Ctrl-C, and writes the outputs. Exit code 3 when it did not track."""
     import linnet
-    from linnet.api import summarize, write_outputs
+    from linnet.api import config_value, summarize, write_outputs
     from linnet.commands.run import EXIT_TRACKING_FAILED, _calibration
     from linnet.commands.sensor import sensor_config
 
@@ -38,7 +38,7 @@ def COMMAND(port, host, calib_files, config_file, overrides, out, record, durati
         given = {item.partition("=")[0].strip() for item in overrides}
         for key, cam_key in (("sensor.width", "width"), ("sensor.height", "height")):
             if key not in given and not _config_sets(config_file, key):
-                cfg.set(key, _value(cfg, f"cam0.{cam_key}"))  # the module sends the calibrated cameras' images
+                cfg.set(key, config_value(cfg, f"cam0.{cam_key}"))  # the module sends the calibrated cameras' images
         status = _StatusLine(quiet)
         result = linnet._linnet.run_live(cfg, host=host, port=port, duration_s=-1.0 if duration is None else duration,
                                          record_dir=str(record) if record else "", run_system=True,
@@ -101,15 +101,6 @@ def _config_sets(config_file, dotted) -> bool:
             return False
         node = node[part]
     return True
-
-
-def _value(cfg, dotted):
-    import yaml
-
-    node = yaml.safe_load(cfg.to_yaml())
-    for part in dotted.split("."):
-        node = node[part]
-    return node
 
 
 class _StatusLine:

@@ -124,6 +124,34 @@ def record(port, host, out, duration, config_file, overrides):
                f"IMU samples {c['lost_imu_samples']}")
 
 
+@COMMAND.command("listen")
+@click.option("--udp", "port", type=click.IntRange(0, 65535), required=True, help="UDP port to listen on.")
+@click.option("--host", default="127.0.0.1", show_default=True, help="IPv4 address to listen on (0.0.0.0: all).")
+@click.option("--duration", type=POSITIVE_SECONDS, default=None, help="Stop after this many seconds of stream.")
+@click.option("--config", "config_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Config file (its sensor section: W, H, IMU ranges, driver policies).")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="Override one config key (repeatable).")
+@click.option("--json", "json_file", type=OUTPUT_FILE, help="Write the driver counters as JSON.")
+def listen(port, host, duration, config_file, overrides, json_file):
+    """Receive the module's stream with the driver only (no SLAM, nothing written) and print its counters: packets,
+    lost rows and IMU samples, incomplete frames, ring-buffer high-water mark, receive / parse thread CPU time."""
+    import linnet
+    from linnet.evaluation import write_json_file
+
+    try:
+        cfg = sensor_config(config_file, overrides)
+        result = linnet._linnet.run_live(cfg, host=host, port=port, duration_s=-1.0 if duration is None else duration,
+                                         run_system=False,
+                                         on_ready=lambda p: click.echo(f"listening on udp://{host}:{p}", err=True))
+    except linnet.Error as e:
+        raise click.ClickException(str(e)) from None
+    c = result["counters"]
+    click.echo(" ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in c.items())
+               + f" end={result['end_reason']}")
+    if json_file is not None:
+        write_json_file(json_file, dict(c, end_reason=result["end_reason"]))
+
+
 class _Progress:
     def __init__(self, quiet: bool, label: str):
         self.quiet, self.label = quiet, label
