@@ -123,3 +123,45 @@ def test_frame_stamp_rule():
     assert linnet._linnet.sensor_frame_stamp([100, 105, 110]) == 105
     assert linnet._linnet.sensor_frame_stamp([100, 106]) == 103
     assert linnet._linnet.sensor_frame_stamp([]) is None
+
+
+def test_recording_of_module_data_round_trips_bit_for_bit(shared_data, tmp_path):
+    """A folder holding the module's own data (int16 IMU values) is recorded back bit for bit: images and IMU csv."""
+    micro = shared_data(MICRO)
+    first, second = tmp_path / "first", tmp_path / "second"
+    _stream(micro, _config(), _config(), record_dir=first, run_system=False, rate=4.0, duration_s=1.0)
+    _stream(first, _config(), _config(), record_dir=second, run_system=False, rate=4.0, imu_lead_s=0.0)
+    imu1 = (first / "mav0" / "imu0" / "data.csv").read_text().splitlines()
+    imu2 = (second / "mav0" / "imu0" / "data.csv").read_text().splitlines()
+    assert len(imu2) > 100 and imu2 == imu1[len(imu1) - len(imu2):]  # the second stream starts at the first image
+    for cam in ("cam0", "cam1"):
+        assert (first / "mav0" / cam / "data.csv").read_text() == (second / "mav0" / cam / "data.csv").read_text()
+        for png in (second / "mav0" / cam / "data").iterdir():
+            assert png.read_bytes() == (first / "mav0" / cam / "data" / png.name).read_bytes()
+
+
+def test_sigint_stops_a_live_run_cleanly_with_outputs(shared_data, tmp_path):
+    import json
+    import signal
+    import time
+
+    micro = shared_data(MICRO)
+    live = subprocess.Popen(LINNET + ["live", "--udp", "0", "--calib", str(micro), "--out", str(tmp_path / "o"),
+                                      "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    port = None
+    for _ in range(100):
+        line = live.stderr.readline()
+        if "listening on udp://" in line:
+            port = int(line.rsplit(":", 1)[1])
+            break
+    assert port is not None
+    emulator = subprocess.Popen(LINNET + ["sensor", "emulate", str(micro), "--port", str(port), "--native-size",
+                                          "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(3.0)
+    live.send_signal(signal.SIGINT)
+    out, err = live.communicate(timeout=120)
+    emulator.wait(timeout=120)
+    assert live.returncode in (0, 3), err
+    assert "Traceback" not in err and "ended: stopped" in out
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["end_reason"] == "stopped" and 0 < summary["frames"] < 95
