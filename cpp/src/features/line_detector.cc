@@ -56,7 +56,11 @@ int findParallelEdges(const cv::Mat& gray, const LineDetectorOptions& options, c
   struct Hit {
     double t, o;
   };
-  std::vector<Hit> hits[2][2][24];  // [side][polarity][|offset| bin]
+  // [side][polarity][|offset| bin]: fixed storage (no allocation per segment). A sample adds at most one hit per
+  // offset, so a bin holds at most 2 K <= 32 hits.
+  constexpr int kBins = 11, kPerBin = 32;  // |offset| <= parallel_search_px <= 10; K <= 16
+  Hit hits[2][2][kBins][kPerBin];
+  int count[2][2][kBins] = {};
   int used = 0;
   float prof[24], g[24];
   for (int i = 0; i < K; ++i) {
@@ -86,8 +90,8 @@ int findParallelEdges(const cv::Mat& gray, const LineDetectorOptions& options, c
       const double am = std::abs(g[o + R - 1]), ap = std::abs(g[o + R + 1]);
       const double den = am - 2.0 * a + ap;
       const double sub = den < -1e-9 ? std::clamp(0.5 * (am - ap) / den, -0.5, 0.5) : 0.0;
-      const int side = o > m ? 1 : 0, pol = g[o + R] > 0 ? 1 : 0;
-      hits[side][pol][std::abs(o)].push_back({t, o + sub});
+      const int side = o > m ? 1 : 0, pol = g[o + R] > 0 ? 1 : 0, bin = std::abs(o);
+      if (count[side][pol][bin] < kPerBin) hits[side][pol][bin][count[side][pol][bin]++] = {t, o + sub};
     }
   }
   if (used < 3) return 0;
@@ -98,8 +102,8 @@ int findParallelEdges(const cv::Mat& gray, const LineDetectorOptions& options, c
     std::size_t best_count = 0;
     for (int pol = 0; pol < 2; ++pol)
       for (int b = 1; b <= R; ++b) {
-        std::size_t c = hits[side][pol][b].size() + hits[side][pol][b - 1].size() +
-                        (b < R ? hits[side][pol][b + 1].size() : 0);
+        const std::size_t c = static_cast<std::size_t>(count[side][pol][b] + count[side][pol][b - 1] +
+                                                       (b < R ? count[side][pol][b + 1] : 0));
         if (c > best_count) {
           best_count = c;
           best_pol = pol;
@@ -110,7 +114,8 @@ int findParallelEdges(const cv::Mat& gray, const LineDetectorOptions& options, c
     // Straight fit o = c0 + c1 t through the window's hits; extent: the span of the samples that saw it.
     double sw = 0.0, st = 0.0, so = 0.0, stt = 0.0, sto = 0.0, t_lo = len, t_hi = 0.0;
     for (int b = best_bin - 1; b <= std::min(R, best_bin + 1); ++b)
-      for (const Hit& h : hits[side][best_pol][b]) {
+      for (int k = 0; k < count[side][best_pol][b]; ++k) {
+        const Hit& h = hits[side][best_pol][b][k];
         sw += 1.0, st += h.t, so += h.o, stt += h.t * h.t, sto += h.t * h.o;
         t_lo = std::min(t_lo, h.t), t_hi = std::max(t_hi, h.t);
       }
