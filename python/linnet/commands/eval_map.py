@@ -54,7 +54,7 @@ def COMMAND(run_dir, dataset, min_observations, within_m, json_file):
 
     The map is brought into the ground-truth frame by the SE3 alignment of RUN_DIR/trajectory.tum onto the dataset's
     ground truth (as for the APE). Each map line is associated with the true segment nearest to its endpoints; prints
-    the angle to it and the endpoint distances to its infinite line. Exit code 2 on missing or malformed files.
+    the angle to it and the endpoint distances to its infinite line. Exit code 1 on missing or malformed files.
     """
     from linnet import evaluation as ev
     from linnet import map_eval
