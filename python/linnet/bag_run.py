@@ -43,9 +43,11 @@ def frame_rate(path: PathLike, topics: BagTopics) -> float:
                 stamps.append(record.t_ns)
                 if len(stamps) >= RATE_PROBE_FRAMES:
                     break
-    if len(stamps) < 2:
-        raise BagError(f"{path}: fewer than two frames on {topics.cam0}: cannot tell the frame rate")
-    return 1e9 / float(np.median(np.diff(stamps)))
+    steps = np.diff(stamps)
+    steps = steps[steps > 0]
+    if len(steps) < 1:
+        raise BagError(f"{path}: fewer than two frames with distinct stamps on {topics.cam0}: cannot tell the frame rate")
+    return 1e9 / float(np.median(steps))
 
 
 def run_bag(path: PathLike, topics: BagTopics, config: _linnet.Config, *, max_frames: int = -1,
@@ -57,9 +59,11 @@ def run_bag(path: PathLike, topics: BagTopics, config: _linnet.Config, *, max_fr
     from linnet.api import config_value
 
     lookback_ns = int(round((config_value(config, "estimator.init.gravity_window_s") + 0.05) * 1e9))
+    if max_frames == 0:
+        raise _linnet.UsageError("no frames selected (max_frames 0)")
     run = _linnet.StreamRun(config, realtime_speed)
     history: deque = deque()     # IMU samples before the first frame, within the look-back
-    pending: Optional[FrameRecord] = None  # a frame waiting for an IMU sample at or after its time
+    pending: deque = deque()     # frames waiting for an IMU sample at or after their time (several across a gap)
     last_imu_t: Optional[int] = None
     first_frame_t: Optional[int] = None
     started = False
@@ -81,13 +85,14 @@ def run_bag(path: PathLike, topics: BagTopics, config: _linnet.Config, *, max_fr
             if isinstance(record, ImuRecord):
                 if not started:
                     history.append(record)
+                    while history and history[0].t_ns < record.t_ns - lookback_ns - 1_000_000_000:
+                        history.popleft()  # only the look-back before the (still unknown) first frame is kept
                     continue
                 run.add_imu(record.t_ns, record.acc, record.gyr)
                 last_imu_t = record.t_ns
-                if pending is not None and record.t_ns >= pending.t_ns:
-                    add_frame(pending, pending_cpu)
-                    pending = None
-                if tail > 0:
+                while pending and record.t_ns >= pending[0][0].t_ns:
+                    add_frame(*pending.popleft())
+                if tail > 0 and not pending:
                     tail -= 1
                     if tail == 0:
                         break
@@ -105,18 +110,18 @@ def run_bag(path: PathLike, topics: BagTopics, config: _linnet.Config, *, max_fr
                             run.add_imu(imu.t_ns, imu.acc, imu.gyr)
                             last_imu_t = imu.t_ns
                     history.clear()
-                if last_imu_t is not None and last_imu_t >= record.t_ns:
+                if not pending and last_imu_t is not None and last_imu_t >= record.t_ns:
                     add_frame(record, read_cpu)
                 else:
-                    pending, pending_cpu = record, read_cpu
-                if max_frames >= 0 and run.frames + (pending is not None) >= max_frames:
-                    tail = TAIL_IMU_SAMPLES + (1 if pending is not None else 0)
-                    if pending is None and tail == 0:
-                        break
+                    pending.append((record, read_cpu))
+                if max_frames >= 0 and run.frames + len(pending) >= max_frames:
+                    # As runEuroc: the sample that covers the last frame, then TAIL_IMU_SAMPLES more.
+                    tail = TAIL_IMU_SAMPLES + (1 if pending else 0)
             cpu0 = time.thread_time()
-    if pending is not None:  # the IMU ended before this frame: it is still handed over, and dropped by the System
-        run.add_warning(f"{path}: the IMU ({topics.imu}) ends before the last frame")
-        add_frame(pending, 0.0)
+    if pending:  # the IMU ended before these frames: still handed over (the System drops what the IMU never covers)
+        run.add_warning(f"{path}: the IMU ({topics.imu}) ends before the last {len(pending)} frame(s)")
+        while pending:
+            add_frame(pending.popleft()[0], 0.0)
     if run.frames == 0:
         raise BagError(f"{path}: no frame to run on {topics.cam0}"
                        + (f" after --start {start_s:g} s" if start_s > 0 else ""))

@@ -228,7 +228,11 @@ def decode_image(msg, msgtype: str, topic: str, path: PathLike = "") -> np.ndarr
     if msgtype == COMPRESSED_TYPE:
         import cv2
 
-        img = cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_GRAYSCALE)
+        buffer = np.frombuffer(msg.data, np.uint8)
+        try:
+            img = cv2.imdecode(buffer, cv2.IMREAD_GRAYSCALE) if buffer.size else None
+        except cv2.error:  # OpenCV raises on some malformed buffers instead of returning None
+            img = None
         if img is None:
             raise BagError(f"{where}: cannot decode compressed image (format '{msg.format}')")
         return img

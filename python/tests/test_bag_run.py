@@ -156,3 +156,34 @@ def test_shipped_tumvi_config():
     text = cfg.to_yaml()
     assert cfg.stereo and "distortion: equidistant" in text and "width: 512" in text
     assert "acc_noise_density: 0.0028" in text
+
+
+def test_bag_with_an_imu_gap_hands_every_frame_over(tmp_path, folder_run):
+    """Frames inside an IMU gap reach the System (it reports them), as from the folder."""
+    import shutil
+
+    from linnet.bags import write_bag_from_euroc
+
+    euroc, _ = folder_run
+    gap = tmp_path / "gap"
+    for sub in ("cam0", "cam1", "imu0"):
+        (gap / "mav0" / sub).mkdir(parents=True)
+        shutil.copy(euroc / "mav0" / sub / "sensor.yaml", gap / "mav0" / sub / "sensor.yaml")
+        shutil.copy(euroc / "mav0" / sub / "data.csv", gap / "mav0" / sub / "data.csv")
+        if sub != "imu0":
+            (gap / "mav0" / sub / "data").symlink_to(euroc / "mav0" / sub / "data")
+    frames = (gap / "mav0" / "cam0" / "data.csv").read_text().splitlines()[1:]
+    t0, t1 = int(frames[20].split(",")[0]) - 1, int(frames[24].split(",")[0]) + 1  # 4 frame periods without IMU
+    imu = gap / "mav0" / "imu0" / "data.csv"
+    rows = imu.read_text().splitlines()
+    imu.write_text("\n".join([rows[0]] + [r for r in rows[1:] if not t0 < int(r.split(",")[0]) < t1]) + "\n")
+    bag = write_bag_from_euroc(gap, tmp_path / "g.bag", version=1, max_frames=FRAMES)
+    r_bag = _run("run", bag, "--calib", gap, "--out", tmp_path / "rb", "--quiet")
+    r_dir = _run("run", gap, "--out", tmp_path / "rd", "--quiet", "--max-frames", FRAMES)
+    assert r_bag.returncode == 0 and r_dir.returncode == 0, (r_bag.stderr, r_dir.stderr)
+    import json
+
+    sb = json.loads((tmp_path / "rb" / "summary.json").read_text())
+    sd = json.loads((tmp_path / "rd" / "summary.json").read_text())
+    assert sb["frames"] == sd["frames"] == FRAMES
+    assert (tmp_path / "rb" / "trajectory.tum").read_text() == (tmp_path / "rd" / "trajectory.tum").read_text()

@@ -362,3 +362,54 @@ def test_lines_set_accepts_the_config_key_and_names_it(shared_data, tmp_path):
              "--set", "lines.detection.min_lenght_px=3")
     _one_line(r, 1, "'lines.detection.min_lenght_px'")
     assert "lines.lines." not in r.stderr
+
+
+DELETE_WITHOUT_FINISH = """
+import numpy as np, linnet
+cfg = linnet.Config(); cfg.use_lines = False
+s = linnet.System(cfg)
+s.set_callback(lambda r: None)
+t0 = 1_000_000_000
+s.add_imu(t0 + np.arange(400) * 5_000_000, np.tile([0.0, 0.0, 9.81], (400, 1)), np.zeros((400, 3)))
+rng = np.random.default_rng(0)
+for i in range(8):
+    image = rng.integers(0, 255, (480, 752), dtype=np.uint8)
+    s.add_stereo(t0 + 200_000_000 + i * 50_000_000, image, image)
+del s
+print("deleted")
+"""
+
+
+def test_a_system_deleted_without_finish_does_not_hang(tmp_path):
+    script = tmp_path / "probe.py"
+    script.write_text(DELETE_WITHOUT_FINISH)
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "deleted" in r.stdout, r.stderr
+
+
+def test_stream_run_rejects_a_non_array_image_and_takes_read_only_arrays():
+    import linnet
+
+    cfg = linnet.Config()
+    cfg.use_lines = False
+    run = linnet.StreamRun(cfg)
+    image = np.zeros((480, 752), np.uint8)
+    with pytest.raises(TypeError):
+        run.add_frame(1_000, image, [[0]])
+    read_only = np.frombuffer(bytes(480 * 752), np.uint8).reshape(480, 752)
+    assert not read_only.flags.writeable
+    system = linnet.System(cfg)
+    system.add_imu(np.arange(1, 60) * 5_000_000, np.tile([0.0, 0.0, 9.81], (59, 1)), np.zeros((59, 3)))
+    system.add_stereo(200_000_000, read_only, read_only)
+    with pytest.raises(TypeError):  # refused by the binding's signature, before any pointer is taken
+        system.add_stereo(250_000_000, [[0]], read_only)
+    with pytest.raises(linnet.UsageError, match="uint8"):
+        system.add_stereo(250_000_000, np.zeros((480, 752), np.float32), read_only)
+    system.finish()
+
+
+def test_imu_gaps_with_a_zero_bridge_still_run(shared_data, tmp_path):
+    r = _run("run", shared_data(MICRO), "--out", tmp_path / "o", "--quiet", "--max-frames", "30",
+             "--set", "estimator.imu_gap.max_bridge_s=0")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["frames_with_pose"] > 20

@@ -22,17 +22,27 @@ void FrameAssembler::push(const std::uint8_t* data, std::size_t size) {
       if (have_imu_counter_) {
         const std::uint32_t expected = last_imu_counter_ + 1;
         if (p.imu.counter != expected) {
-          // Counter differences as signed 32-bit: ahead = lost samples, behind = reordered / duplicated.
+          // Counter differences as signed 32-bit: ahead = lost samples, a little behind = reordered / duplicated,
+          // far behind = the module restarted (resynchronise).
           const auto diff = static_cast<std::int32_t>(p.imu.counter - expected);
-          if (diff < 0) {
+          if (diff < -kResyncWindow) {
+            ++counters_.counter_resyncs;
+          } else if (diff < 0) {
             ++counters_.reordered_imu_samples;
             return;
+          } else {
+            counters_.lost_imu_samples += static_cast<std::uint64_t>(diff);
           }
-          counters_.lost_imu_samples += static_cast<std::uint64_t>(diff);
         }
       }
       have_imu_counter_ = true;
       last_imu_counter_ = p.imu.counter;
+      if (have_imu_t_ && p.imu.t <= last_imu_t_) {
+        ++counters_.stale_imu_samples;
+        return;
+      }
+      have_imu_t_ = true;
+      last_imu_t_ = p.imu.t;
       ++counters_.imu_samples;
       if (on_imu_) on_imu_(sensor::dequantise(p.imu, options_));
       return;
@@ -43,6 +53,7 @@ void FrameAssembler::push(const std::uint8_t* data, std::size_t size) {
       if (have_frame_counter_ && p.frame.counter != last_frame_counter_ + 1) {
         const auto diff = static_cast<std::int32_t>(p.frame.counter - (last_frame_counter_ + 1));
         if (diff > 0) counters_.lost_frame_packets += static_cast<std::uint64_t>(diff);
+        if (diff < -kResyncWindow) ++counters_.counter_resyncs;
       }
       have_frame_counter_ = true;
       last_frame_counter_ = p.frame.counter;
@@ -108,6 +119,13 @@ void FrameAssembler::closeFrame() {
     ++counters_.frames_dropped;
     return;
   }
+  if (have_frame_t_ && frame_.t <= last_frame_t_) {  // not after the previous frame: the System could not take it
+    ++counters_.stale_frames;
+    ++counters_.frames_dropped;
+    return;
+  }
+  have_frame_t_ = true;
+  last_frame_t_ = frame_.t;
   if (frame_.lost_rows[0] == 0 && frame_.lost_rows[1] == 0) {
     ++counters_.frames_complete;
     if (on_frame_) on_frame_(frame_);

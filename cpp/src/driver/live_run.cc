@@ -79,13 +79,13 @@ LiveResult runLive(const Config& config, const LiveOptions& options, const std::
     throw ConfigError("config key 'sensor.width/height' (" + std::to_string(cfg.sensor.width) + "x" +
                       std::to_string(cfg.sensor.height) + ") differs from the camera calibration's image size (" +
                       std::to_string(cfg.cam0.width) + "x" + std::to_string(cfg.cam0.height) + ")");
+  // Declared before the run whose callback uses them: they outlive it on every path.
+  std::atomic<int> frames{0}, dropped{0}, processed{0};
+  std::atomic<int> tracking{-1};
   std::unique_ptr<StreamRun> run;
   if (options.run_system) run = std::make_unique<StreamRun>(cfg);
   std::unique_ptr<Recorder> recorder;
   if (!options.record_dir.empty()) recorder = std::make_unique<Recorder>(options.record_dir);
-
-  std::atomic<int> frames{0}, dropped{0}, processed{0};
-  std::atomic<int> tracking{-1};
   if (run)
     run->setCallback([&](const FrameResult& r) {
       ++processed;

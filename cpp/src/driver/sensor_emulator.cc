@@ -157,6 +157,11 @@ EmulatorReport emulateDataset(const std::string& dataset, const SensorOptions& s
     }
   }
 
+  if (stream.empty())
+    throw InputError(dataset, 0,
+                     "no IMU sample within the images' time span (imu0/data.csv and cam0/data.csv must be in ns on "
+                     "the same clock)");
+
   EmulatorReport report;
   Sender sender(o, &report);
   sender.setDataStart(t_start);

@@ -82,6 +82,7 @@ void UdpDriver::receiveLoop() {
       // Ring full under the drop policy: take the datagram off the socket and let it go (counted).
       if (::recv(socket_, scratch, sizeof scratch, MSG_TRUNC) >= 0) {
         ++received_;
+        last_packet_ns_ = nowNs();
         ring_->noteOverflow();
       }
       continue;

@@ -84,7 +84,9 @@ void EstimatorCore::clearLandmarks() {
 }
 
 void EstimatorCore::addImu(const ImuSample& s) {
-  if (!imu_.empty() && s.t > imu_.endTime() && toSeconds(s.t - imu_.endTime()) > options_.imu_gap.max_bridge_s) {
+  // A step shorter than a gap (gap_periods sample periods) is always integrated, whatever max_bridge_s says.
+  const double bridge_s = std::max(options_.imu_gap.max_bridge_s, preint_options_.gap_dt_s);
+  if (!imu_.empty() && s.t > imu_.endTime() && toSeconds(s.t - imu_.endTime()) > bridge_s) {
     // Too long to integrate: restart the buffer after the gap; the next frame re-initialises (restartAfterImuGap).
     if (imu_gap_start_ < 0) imu_gap_start_ = imu_.endTime();
     imu_gap_end_ = s.t;

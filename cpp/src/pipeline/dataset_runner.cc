@@ -120,8 +120,7 @@ void checkImageSize(const cv::Mat& image, const CameraCalibration& calib, const 
 }  // namespace
 
 StreamRun::StreamRun(const Config& config, double realtime_speed)
-    : config_(config), realtime_speed_(realtime_speed), wall0_(std::chrono::steady_clock::now()),
-      cpu0_(processCpuSeconds()) {
+    : config_(config), realtime_speed_(realtime_speed) {
   if (realtime_speed_ < 0.0) throw UsageError("realtime speed must be >= 0 (0: as fast as possible)");
   if (realtime_speed_ > 0.0) config_.pipeline.blocking = false;
   system_ = std::make_unique<System>(config_);
@@ -131,6 +130,11 @@ StreamRun::StreamRun(const Config& config, double realtime_speed)
 StreamRun::~StreamRun() = default;
 
 void StreamRun::pace(Timestamp t) {
+  if (!started_) {  // the run's wall and CPU clocks start with its first sample (a live source may wait for data)
+    started_ = true;
+    wall0_ = std::chrono::steady_clock::now();
+    cpu0_ = processCpuSeconds();
+  }
   if (realtime_speed_ <= 0.0) return;
   if (pace_t0_ < 0) {
     pace_t0_ = t;
@@ -185,6 +189,7 @@ RunSummary StreamRun::finish() {
     }
     summary.reinitialisations = std::max(summary.reinitialisations, r.estimate.reinitialisations);
   }
+  if (!started_) pace(0);
   summary.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
   if (summary.frames > 0)
     summary.sequence_duration_s =

@@ -6,7 +6,11 @@
 
 namespace linnet::python {
 
+// The System copies the pixels it keeps and never writes to them, so read-only arrays are fine (const_cast below).
 ImageView::ImageView(const py::array& image, const char* name) {
+  if (!py::isinstance<py::array>(image))
+    throw UsageError(std::string(name) + " image must be a numpy uint8 array, got " +
+                     py::str(py::type::of(image).attr("__name__")).cast<std::string>());
   if (!py::isinstance<py::array_t<std::uint8_t>>(image))
     throw UsageError(std::string(name) + " image must be a numpy uint8 array, got dtype " +
                      py::str(image.dtype()).cast<std::string>());
@@ -17,9 +21,10 @@ ImageView::ImageView(const py::array& image, const char* name) {
   const int rows = array.ndim() >= 1 ? static_cast<int>(array.shape(0)) : 0;
   const int cols = array.ndim() >= 2 ? static_cast<int>(array.shape(1)) : 0;
   if (array.ndim() == 2) {
-    mat = cv::Mat(rows, cols, CV_8UC1, array.mutable_data());
+    mat = cv::Mat(rows, cols, CV_8UC1, const_cast<std::uint8_t*>(array.data()));
   } else if (array.ndim() == 3 && (array.shape(2) == 3 || array.shape(2) == 4)) {
-    mat = cv::Mat(rows, cols, CV_8UC(static_cast<int>(array.shape(2))), array.mutable_data());
+    mat = cv::Mat(rows, cols, CV_8UC(static_cast<int>(array.shape(2))),
+                  const_cast<std::uint8_t*>(array.data()));
   } else {
     throw UsageError(std::string(name) + " image must be H x W (gray) or H x W x 3 (BGR), got " +
                      std::to_string(array.ndim()) + " dimensions");

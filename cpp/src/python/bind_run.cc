@@ -52,11 +52,11 @@ void bindRun(py::module_& m) {
       .def("add_imu", [](StreamRun& r, std::int64_t t_ns, const py::object& acc, const py::object& gyr) {
              r.addImu(t_ns, toVec3(acc, "acc"), toVec3(gyr, "gyr"));
            }, py::arg("t_ns"), py::arg("acc"), py::arg("gyr"))
-      .def("add_frame", [](StreamRun& r, std::int64_t t_ns, const py::array& left, const py::object& right,
-                           double load_cpu_s) {
+      .def("add_frame", [](StreamRun& r, std::int64_t t_ns, const py::array& left,
+                           const std::optional<py::array>& right, double load_cpu_s) {
              const ImageView l(left, "left");
              std::optional<ImageView> rv;
-             if (!right.is_none()) rv.emplace(py::reinterpret_borrow<py::array>(right), "right");
+             if (right) rv.emplace(*right, "right");
              const cv::Mat right_mat = rv ? rv->mat : cv::Mat();
              py::gil_scoped_release release;
              return r.addFrame(t_ns, l.mat, right_mat, load_cpu_s);

@@ -35,6 +35,18 @@ struct CallbackFailure {
 class PySystem {
  public:
   explicit PySystem(const Config& config) : system_(config), failure_(std::make_shared<CallbackFailure>()) {}
+  /// Deleted without finish() (an exception in the caller's loop, interpreter exit): the estimator thread may be
+  /// waiting for the GIL in a callback, so the threads are stopped with the GIL released and the callback removed.
+  ~PySystem() {
+    py::gil_scoped_release release;
+    try {
+      system_.setCallback(nullptr);
+      system_.finish();
+    } catch (...) {  // a worker error nobody will read: the object is going away
+    }
+  }
+  PySystem(const PySystem&) = delete;
+  PySystem& operator=(const PySystem&) = delete;
 
   void setCallback(py::function cb) {
     // The estimator thread copies the callback; whichever copy goes last deletes the function, with the GIL.

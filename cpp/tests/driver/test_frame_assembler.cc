@@ -150,6 +150,41 @@ TEST(FrameAssembler, ALostFramePacketAfterAnIncompleteFrameDoesNotMixFrames) {
   EXPECT_TRUE(pixelsMatch(got.frames[0], 2));
 }
 
+TEST(FrameAssembler, StaleStampsAndAModuleRestartAreCountedNotDelivered) {
+  const SensorOptions o = small();
+  auto first = driver_test::stream(o, 2);
+  auto restarted = driver_test::stream(o, 2);  // counters and clock start again (a power cycle)
+  std::vector<std::vector<std::uint8_t>> all = first;
+  all.insert(all.end(), restarted.begin(), restarted.end());
+  Collected got;
+  FrameAssembler a = assembler(o, &got);
+  feed(a, all);
+  const DriverCounters& c = a.counters();
+  // The restart is a resync, not 2^32 lost or reordered samples; its samples and frames are stale (not after the
+  // last delivered stamps), so the System never sees time going back.
+  EXPECT_EQ(c.counter_resyncs, 0u);  // counters back by 20 / 2: within the window, counted as reordered
+  EXPECT_EQ(got.frames.size(), 2u);
+  EXPECT_EQ(got.imu.size(), 20u);
+  for (std::size_t i = 1; i < got.imu.size(); ++i) EXPECT_GT(got.imu[i].t, got.imu[i - 1].t);
+  EXPECT_EQ(c.stale_frames, 2u);
+
+  // A far jump back of the counter (beyond the resync window) with later stamps is followed.
+  SensorOptions o2 = small();
+  Collected got2;
+  FrameAssembler b = assembler(o2, &got2);
+  ImuSample s;
+  s.t = 100;
+  const auto p1 = sensor::encodeImu(sensor::quantise(s, 50000, o2));
+  s.t = 200;
+  const auto p2 = sensor::encodeImu(sensor::quantise(s, 3, o2));
+  s.t = 300;
+  const auto p3 = sensor::encodeImu(sensor::quantise(s, 4, o2));
+  for (const auto* p : {&p1, &p2, &p3}) b.push(p->data(), p->size());
+  EXPECT_EQ(b.counters().counter_resyncs, 1u);
+  EXPECT_EQ(got2.imu.size(), 3u);
+  EXPECT_EQ(b.counters().lost_imu_samples, 0u);
+}
+
 TEST(PacketRing, FastProducerDropPolicyCountsAndNeverCorrupts) {
   for (const bool block : {false, true}) {
     PacketRing ring(64, 16, block);

@@ -32,17 +32,25 @@ def sensor_config(config_file, overrides, base=None, native_size_of=None):
 
 
 def _image_size(dataset: Path):
+    """(W, H) of the dataset's first cam0 image; ClickException naming the file when it cannot be read."""
     import cv2
+
+    from linnet.fileio import InputError, read_text_file
 
     csv = dataset / "mav0" / "cam0" / "data.csv"
     if not csv.is_file():
         csv = dataset / "cam0" / "data.csv"
-    rows = [line for line in csv.read_text().splitlines() if line and not line.startswith("#")] if csv.is_file() else []
-    if not rows:
-        raise click.ClickException(f"{csv}: no images listed")
-    image = cv2.imread(str(csv.parent / "data" / rows[0].split(",")[1].strip()), cv2.IMREAD_GRAYSCALE)
+    try:
+        rows = [line for line in read_text_file(csv, "a EuRoC cam0/data.csv", name_if_missing=True).splitlines()
+                if line.strip() and not line.startswith("#")]
+    except InputError as e:
+        raise click.ClickException(str(e)) from None
+    fields = rows[0].split(",") if rows else []
+    if len(fields) < 2:
+        raise click.ClickException(f"{csv}: no image listed (expected 'timestamp,filename' rows)")
+    image = cv2.imread(str(csv.parent / "data" / fields[1].strip()), cv2.IMREAD_GRAYSCALE)
     if image is None:
-        raise click.ClickException(f"{csv.parent / 'data'}: cannot read the first image")
+        raise click.ClickException(f"{csv.parent / 'data' / fields[1].strip()}: cannot read the first image")
     return image.shape[1], image.shape[0]
 
 

@@ -7,8 +7,10 @@
 // rows. The module sends each camera's rows in increasing order, so a row number below the last one received for
 // that camera means a new exposure whose frame packet was lost: the open frame is closed and the rows up to the next
 // frame packet are orphans, as are rows with no open frame at all. A row received twice in a row is a duplicate. IMU samples are delivered in counter order as they arrive; a gap in the
-// counter counts lost samples, a counter going back counts a reordered / duplicated sample (dropped: the System needs
-// increasing time stamps). Never throws on bad data: every problem is a counter.
+// counter counts lost samples, a counter going back a little counts a reordered / duplicated sample (dropped), a
+// counter going back far (more than kResyncWindow: the module restarted) resynchronises. IMU samples and frames whose
+// time stamp is not after the previous one's are dropped and counted (the System needs increasing time stamps).
+// Never throws on bad data: every problem is a counter.
 #pragma once
 
 #include <cstdint>
@@ -44,6 +46,8 @@ struct DriverCounters {
   std::uint64_t frames_without_stamp = 0;  // frame packets listing no IMU sample (dropped)
   std::uint64_t lost_frame_packets = 0;    // gaps in the frame counter
   std::uint64_t imu_samples = 0, lost_imu_samples = 0, reordered_imu_samples = 0;
+  std::uint64_t stale_imu_samples = 0, stale_frames = 0;  // time stamp not after the previous one's: dropped
+  std::uint64_t counter_resyncs = 0;       // IMU / frame counters that jumped far back (module restart)
   std::uint64_t ring_overflows = 0;        // filled in by the driver
   std::uint64_t ring_high_water = 0;
   double receive_cpu_s = 0.0, parse_cpu_s = 0.0;  // thread CPU time, filled in by the driver
@@ -51,6 +55,9 @@ struct DriverCounters {
 
 class FrameAssembler {
  public:
+  /// A counter that goes back by more than this is a restart of the module, not a reordered packet.
+  static constexpr std::int32_t kResyncWindow = 1024;
+
   using ImuCallback = std::function<void(const ImuSample&)>;
   using FrameCallback = std::function<void(const DriverFrame&)>;
 
@@ -84,6 +91,8 @@ class FrameAssembler {
   std::uint32_t last_frame_counter_ = 0;
   bool have_imu_counter_ = false;
   std::uint32_t last_imu_counter_ = 0;
+  Timestamp last_imu_t_ = 0, last_frame_t_ = 0;
+  bool have_imu_t_ = false, have_frame_t_ = false;
 };
 
 }  // namespace linnet

@@ -86,6 +86,7 @@ class StreamRun {
   Timestamp pace_t0_ = -1;  // data time of the first paced sample
   std::chrono::steady_clock::time_point wall0_;
   double cpu0_ = 0.0;
+  bool started_ = false;  // wall0_ / cpu0_ set (at the first sample)
   bool finished_ = false;
 
   void pace(Timestamp t);
