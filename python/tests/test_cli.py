@@ -50,3 +50,18 @@ def test_shipped_config_loads():
     shipped = Path(__file__).resolve().parents[2] / "config" / "euroc_stereo_imu.yaml"
     cfg = linnet.Config.load(str(shipped))
     assert cfg.stereo
+
+
+def test_stage_table_shares(tmp_path):
+    from linnet.commands.bench_stages import stage_table
+
+    header = ("#timestamp [ns],frontend_ms,backend_ms,total_ms,point_ms,line_ms,points,stereo_points,lines,keyframe,"
+              "status,point_cpu_ms,line_cpu_ms,backend_cpu_ms,line_backend_ms,solver_ms,landmark_points,"
+              "landmark_lines")
+    rows = [f"{i},5,2,7,4,5,100,80,30,0,1,{3 + i % 2},{2},{1},0.2,0.8,90,20" for i in range(10)]
+    csv = tmp_path / "timing.csv"
+    csv.write_text(header + "\n" + "\n".join(rows) + "\n")
+    table = stage_table(csv)
+    shares = [table[k]["share"] for k in ("points_cpu", "lines_cpu", "backend_cpu")]
+    assert abs(sum(shares) - 1.0) < 1e-12 and abs(shares[0] - 3.5 / 6.5) < 1e-12
+    assert table["frame_cpu"]["median_ms"] == 6.5 and table["solver"]["median_ms"] == 0.8

@@ -1,4 +1,5 @@
-"""`linnet bench stages [DATASET]`: per-stage median and p95 ms of a run (front-end, back-end, total)."""
+"""`linnet bench stages [DATASET]`: per-stage median and p95 ms of a run (wall and CPU time, each stage's share of the
+frame's CPU time, the back-end's line steps and solve)."""
 from __future__ import annotations
 
 import json
@@ -9,19 +10,35 @@ import click
 from linnet.commands.params import OUTPUT_FILE
 
 
-def stage_table(timing_csv: Path) -> dict:
+#: timing.csv columns (0-based) of the per-stage times; the *_cpu ones are thread CPU time (unaffected by other load).
+WALL_COLUMNS = {"frontend": 1, "backend": 2, "total": 3, "points": 4, "lines": 5}
+CPU_COLUMNS = {"points_cpu": 11, "lines_cpu": 12, "backend_cpu": 13}
+#: Parts of the back-end (wall time on the estimator thread, which does nothing else): line steps and the solve.
+BACKEND_PARTS = {"line_backend": 14, "solver": 15}
+
+
+def _stats(v) -> dict:
     import numpy as np
 
-    data = np.genfromtxt(timing_csv, delimiter=",", comments="#")
-    data = np.atleast_2d(data)
-    cols = {"frontend": 1, "backend": 2, "total": 3, "points": 4, "lines": 5}
-    if data.shape[1] >= 14:  # CPU-time columns (thread CPU clock): unaffected by other load on the core
-        cols.update({"points_cpu": 11, "lines_cpu": 12, "backend_cpu": 13})
-    out = {}
-    for name, c in cols.items():
-        v = data[:, c]
-        out[name] = {"median_ms": float(np.median(v)), "p95_ms": float(np.percentile(v, 95)),
-                     "max_ms": float(np.max(v)), "frames": int(v.size)}
+    return {"median_ms": float(np.median(v)), "p95_ms": float(np.percentile(v, 95)), "max_ms": float(np.max(v)),
+            "mean_ms": float(np.mean(v)), "frames": int(v.size)}
+
+
+def stage_table(timing_csv: Path) -> dict:
+    """Per-stage statistics of a run's timing.csv: wall stages, CPU stages (with each one's share of the frame's CPU
+    time) and the back-end's parts."""
+    import numpy as np
+
+    data = np.atleast_2d(np.genfromtxt(timing_csv, delimiter=",", comments="#"))
+    out = {name: _stats(data[:, c]) for name, c in WALL_COLUMNS.items()}
+    if data.shape[1] > max(CPU_COLUMNS.values()):
+        cpu_total = sum(data[:, c] for c in CPU_COLUMNS.values())
+        for name, c in CPU_COLUMNS.items():
+            out[name] = dict(_stats(data[:, c]), share=float(np.sum(data[:, c]) / max(np.sum(cpu_total), 1e-12)))
+        out["frame_cpu"] = dict(_stats(cpu_total), share=1.0)
+    if data.shape[1] > max(BACKEND_PARTS.values()):
+        for name, c in BACKEND_PARTS.items():
+            out[name] = _stats(data[:, c])
     return out
 
 
@@ -47,12 +64,19 @@ def COMMAND(dataset, duration, json_out):
     out = Path("runs/bench") / ("stages_" + Path(dataset).resolve().name)
     write_outputs(run, summary, out)
     table = stage_table(out / "timing.csv")
-    click.echo(f"| stage | median ms | p95 ms | max ms |   ({dataset}, {table['total']['frames']} frames, "
-               f"real-time factor wall {summary['real_time_factor']:.3f}, CPU {summary['cpu_real_time_factor']:.3f})")
-    click.echo("|---|---|---|---|")
+    click.echo(f"{dataset}: {table['total']['frames']} frames, real-time factor wall "
+               f"{summary['real_time_factor']:.3f}, CPU {summary['cpu_real_time_factor']:.3f} (all threads, image "
+               "decoding included)")
+    click.echo("| stage | median ms | p95 ms | max ms | share of frame CPU |")
+    click.echo("|---|---|---|---|---|")
     for name, s in table.items():
-        click.echo(f"| {name} | {s['median_ms']:.2f} | {s['p95_ms']:.2f} | {s['max_ms']:.2f} |")
+        share = f"{100 * s['share']:.0f} %" if "share" in s else ""
+        click.echo(f"| {name} | {s['median_ms']:.2f} | {s['p95_ms']:.2f} | {s['max_ms']:.2f} | {share} |")
     n = max(1, table["total"]["frames"])
-    click.echo(f"| image decode (mean CPU, both images) | {1e3 * summary['image_load_cpu_s'] / n:.2f} | | |")
+    click.echo(f"| image decode (mean CPU, both images) | {1e3 * summary['image_load_cpu_s'] / n:.2f} | | | |")
+    if "frame_cpu" in table:
+        f = table["frame_cpu"]
+        click.echo(f"frame CPU p95 / median: {f['p95_ms'] / max(f['median_ms'], 1e-9):.2f} (points, lines and "
+                   "back-end threads; `make profile` for a per-function profile)")
     if json_out:
         json_out.write_text(json.dumps({"stages": table, "summary": summary}, indent=2) + "\n")
