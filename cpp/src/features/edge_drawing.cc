@@ -48,8 +48,10 @@ inline double distance(const LineFit& f, double x, double y) { return std::abs((
 
 void EdgeDrawing::detect(const cv::Mat& gray, std::vector<cv::Vec4f>* lines) {
   lines->clear();
-  chains_.clear();
-  if (gray.cols < 8 || gray.rows < 8) return;
+  if (gray.cols < 8 || gray.rows < 8) {
+    chains_.clear();
+    return;
+  }
   gradient(gray);
   link();
   for (const std::vector<cv::Point>& chain : chains_) fitLines(chain, lines);
@@ -129,6 +131,8 @@ void EdgeDrawing::link() {
   const std::uint8_t* dir = dir_.ptr<std::uint8_t>(0);
   std::uint8_t* edge = edge_.ptr<std::uint8_t>(0);
   const std::size_t min_chain = static_cast<std::size_t>(std::max(2, options_.min_line_px));
+  // The chains of the previous image are reused in place (their memory kept): no allocation per chain once warm.
+  std::size_t n_chains = 0;
   for (int a : sorted_) {
     if (edge[a]) continue;
     const int x = a % cols, y = a / cols;
@@ -143,13 +147,14 @@ void EdgeDrawing::link() {
       walk(x, y, 1, 0, &right_);
     }
     if (left_.size() + right_.size() + 1 < min_chain) continue;
-    std::vector<cv::Point> chain;
-    chain.reserve(left_.size() + right_.size() + 1);
+    if (n_chains == chains_.size()) chains_.emplace_back();
+    std::vector<cv::Point>& chain = chains_[n_chains++];
+    chain.clear();
     chain.insert(chain.end(), left_.rbegin(), left_.rend());
     chain.emplace_back(x, y);
     chain.insert(chain.end(), right_.begin(), right_.end());
-    chains_.push_back(std::move(chain));
   }
+  chains_.resize(n_chains);
 }
 
 void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out) {
