@@ -11,13 +11,19 @@ from linnet import _linnet
 PathLike = Union[str, Path]
 
 
+#: Ground-truth files of a mav0 folder, first found wins: EuRoC's estimate, then TUM-VI's motion capture (8 columns:
+#: t, p, q wxyz; it covers the start and the end of a TUM-VI sequence only).
+GROUND_TRUTH_FILES = ("state_groundtruth_estimate0/data.csv", "mocap0/data.csv")
+
+
 def find_ground_truth(dataset: PathLike) -> Optional[Path]:
-    """The ground-truth csv of a EuRoC folder (holding mav0/ or mav0 itself), or None."""
+    """The ground-truth csv of a EuRoC-format folder (holding mav0/ or mav0 itself; GROUND_TRUTH_FILES), or None."""
     root = Path(dataset)
     for mav0 in (root / "mav0", root):
-        gt = mav0 / "state_groundtruth_estimate0" / "data.csv"
-        if gt.is_file():
-            return gt
+        for name in GROUND_TRUTH_FILES:
+            gt = mav0 / name
+            if gt.is_file():
+                return gt
     return None
 
 

@@ -140,8 +140,15 @@ def test_config_file_calibration_replaces_sensor_yaml(tmp_path, folder_run):
             (bare / sub / "data").symlink_to(euroc / "mav0" / sub / "data")
     r = _run("run", bare.parent, "--out", tmp_path / "plain", "--quiet", "--max-frames", FRAMES)
     assert r.returncode == 1 and "sensor.yaml" in r.stderr
+    # TUM-VI keeps its ground truth in mav0/mocap0 (t, p, q wxyz): summary.json gets the APE from it.
+    (bare / "mocap0").mkdir()
+    gt_rows = (euroc / "mav0" / "state_groundtruth_estimate0" / "data.csv").read_text().splitlines()
+    (bare / "mocap0" / "data.csv").write_text("\n".join(",".join(r.split(",")[:8]) for r in gt_rows) + "\n")
     r = _run("run", bare.parent, "--config", config, "--out", tmp_path / "run", "--quiet", "--max-frames", FRAMES)
     assert r.returncode == 0, r.stderr
+    import json
+
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["ape"]["rmse_m"] < 0.01
     got = np.loadtxt(tmp_path / "run" / "trajectory.tum")  # equal up to the config file's decimal round trip
     ref = np.loadtxt(expected.splitlines())
     assert got.shape == ref.shape and np.max(np.abs(got - ref)) < 1e-9
