@@ -49,7 +49,7 @@ def load_config(dataset: Optional[PathLike], config_file: Optional[PathLike] = N
     (dotted keys, YAML values) applied in order; errors name the offending "--set KEY=VALUE".
     """
     calib = calib or Calibration()
-    if config_file is not None and not calib.camchain and _holds_calibration(config_file):
+    if config_file is not None and not calib.camchain and holds_calibration(config_file):
         cfg = base or _linnet.Config()  # the file's cam0 / cam1 / imu sections are the calibration (merged below)
     elif dataset is not None:
         cfg = _linnet.Config.for_euroc(str(dataset), base, camchain=calib.camchain, imu_yaml=calib.imu_yaml)
@@ -57,6 +57,13 @@ def load_config(dataset: Optional[PathLike], config_file: Optional[PathLike] = N
         cfg = _linnet.Config.for_kalibr(calib.camchain, calib.imu_yaml, calib.rate_hz, base)
     else:
         raise _linnet.UsageError("no calibration: give a EuRoC folder or a Kalibr camchain (--calib)")
+    return apply_settings(cfg, config_file, overrides)
+
+
+def apply_settings(cfg: _linnet.Config, config_file: Optional[PathLike] = None,
+                   overrides: Union[str, Sequence[str], None] = None) -> _linnet.Config:
+    """`cfg` with the keys of `config_file` and then `overrides` (YAML text, or "KEY=VALUE" strings applied in order;
+    errors name the offending "--set KEY=VALUE"). Returns `cfg`."""
     if config_file is not None:
         cfg.merge(str(config_file))
     if isinstance(overrides, str):
@@ -81,7 +88,7 @@ def config_value(config: _linnet.Config, dotted_key: str):
     return node
 
 
-def _holds_calibration(config_file: PathLike) -> bool:
+def holds_calibration(config_file: PathLike) -> bool:
     """True when a config file has its own cam0 and imu sections."""
     import yaml
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
-from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation
 from pathlib import Path
 from typing import Union
 
@@ -176,17 +175,6 @@ def _format_of_line(path: Path, number: int, line: str) -> str:
     return "tum"
 
 
-def _parse_time(path: Path, number: int, token: str, scale: int) -> int:
-    """Exact conversion of a decimal time token to int ns; ``scale`` is ns per file unit (1e9 for seconds)."""
-    try:
-        value = Decimal(token) * scale
-    except InvalidOperation:
-        raise InputError(f"{path}:{number}: bad time stamp '{token}'") from None
-    if not value.is_finite():
-        raise InputError(f"{path}:{number}: bad time stamp '{token}'")
-    return int(value.to_integral_value(rounding=ROUND_HALF_EVEN))
-
-
 def _time_scale(path: Path, number: int, line: str, fmt: str) -> int:
     """ns per time unit of the file, from its first data line: TUM by the magnitude of the first time stamp (s, ms,
     us or ns, see linnet.timeunits); EuRoC csv in integer ns unless the time has a decimal point (then by magnitude)."""
@@ -242,14 +230,14 @@ def load_trajectory(path: PathLike, fmt: str = "auto") -> Trajectory:
                     f"{path}:{number}: {len(tokens)} columns, expected {columns if columns in _EUROC_COLUMNS else 8}"
                     " (EuRoC csv: t_ns, px, py, pz, qw, qx, qy, qz[, v, b_w, b_a])"
                 )
-            t = _parse_time(path, number, tokens[0], scale)
+            t = timeunits.parse_time_ns(path, number, tokens[0], scale)
             v = _parse_floats(path, number, tokens[1:8])
             p, q = v[0:3], v[3:7]  # file order w, x, y, z
         else:
             tokens = line.split()
             if len(tokens) != _TUM_COLUMNS:
                 raise InputError(f"{path}:{number}: {len(tokens)} fields, expected 8 (TUM: t x y z qx qy qz qw)")
-            t = _parse_time(path, number, tokens[0], scale)
+            t = timeunits.parse_time_ns(path, number, tokens[0], scale)
             v = _parse_floats(path, number, tokens[1:8])
             p, q = v[0:3], [v[6], v[3], v[4], v[5]]  # file order x, y, z, w -> w, x, y, z
         if math.sqrt(sum(c * c for c in q)) < _QUAT_MIN_NORM:

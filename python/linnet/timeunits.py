@@ -13,6 +13,10 @@ same way:
 """
 from __future__ import annotations
 
+from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation
+
+from linnet.fileio import InputError
+
 #: (lower bound of |t|, unit name, ns per unit), largest first.
 _UNITS = ((1e17, "ns", 1), (1e14, "us", 1_000), (1e11, "ms", 1_000_000), (0.0, "s", 1_000_000_000))
 
@@ -32,3 +36,18 @@ def euroc_seconds_hint(first_time: float) -> str:
     if name == "ns":
         return ""
     return f" (time stamps look like {name}; a EuRoC csv holds integer nanoseconds)"
+
+
+def parse_time_ns(path, number: int, token: str, scale: int) -> int:
+    """Exact conversion of a decimal time token to int64 ns (``scale``: ns per file unit, 1e9 for seconds);
+    InputError naming the file and line for a token that is not a finite number or out of the int64 ns range."""
+    try:
+        value = Decimal(token) * scale
+    except InvalidOperation:
+        raise InputError(f"{path}:{number}: bad time stamp '{token}'") from None
+    if not value.is_finite():
+        raise InputError(f"{path}:{number}: bad time stamp '{token}'")
+    ns = int(value.to_integral_value(rounding=ROUND_HALF_EVEN))
+    if abs(ns) >= 2**63:
+        raise InputError(f"{path}:{number}: time stamp '{token}' is out of the int64 ns range")
+    return ns

@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "bind_callbacks.h"
 #include "linnet/driver/live_run.h"
 #include "linnet/driver/sensor_emulator.h"
 
@@ -107,14 +108,7 @@ void bindDriver(py::module_& m) {
           o.duration_s = duration_s;
           o.imu_lead_s = imu_lead_s;
           o.loops = loops;
-          std::function<void(int, int)> cb;
-          if (progress) {
-            auto holder = std::make_shared<py::function>(*progress);
-            cb = [holder](int done, int total) {
-              py::gil_scoped_acquire gil;
-              (*holder)(done, total);
-            };
-          }
+          const auto cb = withGil<int, int>(progress);
           EmulatorReport report;
           {
             py::gil_scoped_release release;
@@ -137,17 +131,10 @@ void bindDriver(py::module_& m) {
           o.duration_s = duration_s;
           o.record_dir = record_dir;
           o.run_system = run_system;
-          std::function<void(int)> ready;
-          if (on_ready) {
-            auto holder = std::make_shared<py::function>(*on_ready);
-            ready = [holder](int p) {
-              py::gil_scoped_acquire gil;
-              (*holder)(p);
-            };
-          }
+          const auto ready = withGil<int>(on_ready);
           std::function<void(const LiveStatus&)> st;
           if (status) {
-            auto holder = std::make_shared<py::function>(*status);
+            auto holder = holdFunction(*status);
             st = [holder](const LiveStatus& s) {
               py::gil_scoped_acquire gil;
               py::dict d;

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "bind_arrays.h"
+#include "bind_callbacks.h"
 #include "bind_images.h"
 #include "linnet/pipeline/dataset_runner.h"
 
@@ -78,13 +79,7 @@ void bindRun(py::module_& m) {
           opt.open.camchain = camchain;
           opt.open.imu_yaml = imu_yaml;
           opt.realtime_speed = realtime_speed;
-          if (progress) {
-            auto holder = std::make_shared<py::function>(*progress);
-            opt.progress = [holder](int done, int total) {
-              py::gil_scoped_acquire gil;
-              (*holder)(done, total);
-            };
-          }
+          opt.progress = withGil<int, int>(progress);
           py::gil_scoped_release release;
           return runEuroc(dataset, config, opt);
         }, py::arg("dataset"), py::arg("config"), py::arg("max_frames") = -1, py::arg("start_s") = 0.0,

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "bind_arrays.h"
+#include "bind_callbacks.h"
 #include "bind_images.h"
 #include "linnet/core/error.h"
 #include "linnet/pipeline/system.h"
@@ -50,10 +51,7 @@ class PySystem {
 
   void setCallback(py::function cb) {
     // The estimator thread copies the callback; whichever copy goes last deletes the function, with the GIL.
-    std::shared_ptr<py::function> holder(new py::function(std::move(cb)), [](py::function* f) {
-      py::gil_scoped_acquire gil;
-      delete f;
-    });
+    auto holder = holdFunction(std::move(cb));
     std::weak_ptr<CallbackFailure> weak = failure_;
     system_.setCallback([holder, weak](const FrameResult& r) {
       py::gil_scoped_acquire gil;

@@ -5,7 +5,11 @@ from pathlib import Path
 
 import click
 
-from linnet.commands.params import OUTPUT_DIR, POSITIVE_SECONDS
+from linnet.commands.params import OUTPUT_DIR, POSITIVE_SECONDS, key_values
+
+
+#: Camera rate of the sensor module (thesis: 20 Hz), for a Kalibr camchain, which does not hold it.
+MODULE_RATE_HZ = 20.0
 
 
 @click.command("live")
@@ -16,7 +20,8 @@ from linnet.commands.params import OUTPUT_DIR, POSITIVE_SECONDS
                    "cam0 / cam1 / imu sections in --config.")
 @click.option("--config", "config_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="YAML file overriding the defaults (its sensor section: W, H, IMU ranges, driver policies).")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="Override one config key (repeatable).")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", callback=key_values,
+              help="Override one config key (repeatable).")
 @click.option("--out", type=OUTPUT_DIR, default=Path("runs") / "live", show_default=True,
               help="Output folder: the `linnet run` outputs, with the driver counters in summary.json.")
 @click.option("--record", type=OUTPUT_DIR, default=None, help="Also write the stream as a EuRoC folder here.")
@@ -29,11 +34,11 @@ def COMMAND(port, host, calib_files, config_file, overrides, out, record, durati
     Ctrl-C, and writes the outputs. Exit code 3 when it did not track."""
     import linnet
     from linnet.api import config_value, summarize, write_outputs
-    from linnet.commands.run import EXIT_TRACKING_FAILED, _calibration
+    from linnet.commands.run import EXIT_TRACKING_FAILED
     from linnet.commands.sensor import sensor_config
 
     try:
-        base = _live_calibration(calib_files, config_file, _calibration)
+        base = _live_calibration(calib_files, config_file)
         cfg = sensor_config(config_file, overrides, base=base)
         given = {item.partition("=")[0].strip() for item in overrides}
         for key, cam_key in (("sensor.width", "width"), ("sensor.height", "height")):
@@ -70,21 +75,14 @@ def COMMAND(port, host, calib_files, config_file, overrides, out, record, durati
         raise click.exceptions.Exit(EXIT_TRACKING_FAILED)
 
 
-def _live_calibration(calib_files, config_file, calibration_of):
-    import linnet
-    from linnet.api import _holds_calibration, load_config
+def _live_calibration(calib_files, config_file):
+    """The --calib config (None: the --config file holds the calibration)."""
+    from linnet.api import holds_calibration
+    from linnet.commands.run import calibration_config
 
-    folders = [p for p in calib_files if p.is_dir()]
-    if folders:
-        if len(calib_files) > 1:
-            raise click.BadParameter("a EuRoC folder is the whole calibration: give it alone", param_hint="--calib")
-        return load_config(folders[0])
     if calib_files:
-        calib = calibration_of(calib_files)
-        if not calib.camchain:
-            raise click.BadParameter("no Kalibr camchain among the --calib files", param_hint="--calib")
-        return linnet.Config.for_kalibr(calib.camchain, calib.imu_yaml, 20.0)
-    if config_file is not None and _holds_calibration(config_file):
+        return calibration_config(calib_files, lambda: MODULE_RATE_HZ)
+    if config_file is not None and holds_calibration(config_file):
         return None
     raise click.UsageError("no calibration: give --calib (Kalibr files or a EuRoC folder) or a --config with "
                            "cam0 / cam1 / imu sections")

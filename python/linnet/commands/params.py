@@ -72,3 +72,12 @@ class FiniteFloat(click.FloatRange):
 SECONDS = FiniteFloat(min=0.0)
 #: Seconds > 0 (durations).
 POSITIVE_SECONDS = FiniteFloat(min=0.0, min_open=True)
+
+
+def key_values(ctx, param, values):
+    """Callback of the --set options: every value must be KEY=VALUE with a key (a usage error otherwise)."""
+    for item in values:
+        key, sep, _ = item.partition("=")
+        if not sep or not key.strip():
+            raise click.BadParameter(f"'{item}' is not KEY=VALUE (e.g. pipeline.use_lines=false)", ctx, param)
+    return values

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import click
 
-from linnet.commands.params import OUTPUT_DIR, SECONDS
+from linnet.commands.params import OUTPUT_DIR, SECONDS, key_values
+from linnet.commands.progress import ProgressBar
 
 #: Exit code of a run that went through but did not track (see the module docstring).
 EXIT_TRACKING_FAILED = 3
@@ -27,7 +28,7 @@ EXIT_TRACKING_FAILED = 3
                    "pinhole radtan or equidistant) and optionally an imu.yaml (repeat --calib). For a ROS bag, a "
                    "EuRoC folder is accepted too (its sensor.yaml files are used).")
 @click.option("--out", type=OUTPUT_DIR, default=None, help="Output folder (default: runs/<input name>).")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", callback=key_values,
               help="Override one config key, e.g. --set pipeline.use_lines=false (repeatable).")
 @click.option("--max-frames", type=click.IntRange(min=-1), default=-1, show_default=True,
               help="Stop after N frames (-1: all).")
@@ -108,55 +109,40 @@ def _folder_config(dataset, calib_files, config_file, overrides):
     return load_config(dataset, config_file, list(overrides), calib=_calibration(calib_files))
 
 
-def _bag_config(bag, topics, calib_files, config_file, overrides):
-    from linnet import bag_run
-    from linnet.api import load_config
+def calibration_config(calib_files, rate_hz):
+    """The config of a --calib given for a source without calibration files (a bag, the sensor module): a EuRoC folder
+    alone (its sensor.yaml files), or Kalibr files; `rate_hz()` gives the camera rate a camchain does not hold."""
+    import linnet
 
-    if not calib_files:
-        raise click.UsageError("a ROS bag holds no calibration: give --calib camchain.yaml [--calib imu.yaml] "
-                               "(Kalibr), or --calib EUROC_FOLDER")
     folders = [p for p in calib_files if p.is_dir()]
     if folders:
         if len(calib_files) > 1:
             raise click.BadParameter("a EuRoC folder is the whole calibration: give it alone", param_hint="--calib")
-        cfg = load_config(folders[0], config_file, list(overrides))
-    else:
-        calib = _calibration(calib_files)
-        if not calib.camchain:
-            raise click.BadParameter("no Kalibr camchain among the --calib files", param_hint="--calib")
-        calib.rate_hz = bag_run.frame_rate(bag, topics)
-        cfg = load_config(None, config_file, list(overrides), calib=calib)
+        return linnet.Config.for_euroc(str(folders[0]))
+    calib = _calibration(calib_files)
+    if not calib.camchain:
+        raise click.BadParameter("no Kalibr camchain among the --calib files", param_hint="--calib")
+    return linnet.Config.for_kalibr(calib.camchain, calib.imu_yaml, rate_hz())
+
+
+def _bag_config(bag, topics, calib_files, config_file, overrides):
+    from linnet import bag_run
+    from linnet.api import apply_settings
+
+    if not calib_files:
+        raise click.UsageError("a ROS bag holds no calibration: give --calib camchain.yaml [--calib imu.yaml] "
+                               "(Kalibr), or --calib EUROC_FOLDER")
+    cfg = apply_settings(calibration_config(calib_files, lambda: bag_run.frame_rate(bag, topics)), config_file,
+                         list(overrides))
     if cfg.stereo != topics.stereo:
         raise click.UsageError(f"the calibration has {'two cameras' if cfg.stereo else 'one camera'} but "
                                f"{'a cam1 topic was given' if topics.stereo else '--cam1-topic is empty'}")
     return cfg
 
 
-class _Bar:
-    """A rich progress bar (or nothing with --quiet): progress(done, total)."""
-
-    def __init__(self, quiet: bool):
-        self.quiet = quiet
-
-    def __enter__(self):
-        if self.quiet:
-            return lambda done, total: None
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-        self.bar = Progress(TextColumn("[bold]linnet run[/bold]"), BarColumn(), MofNCompleteColumn(),
-                            TimeRemainingColumn(), transient=True)
-        self.bar.__enter__()
-        task = self.bar.add_task("frames", total=None)
-        return lambda done, total: self.bar.update(task, completed=done, total=total)
-
-    def __exit__(self, *exc):
-        if not self.quiet:
-            self.bar.__exit__(*exc)
-
-
 def _run_folder(linnet, dataset, cfg, calib_files, max_frames, start, realtime, quiet):
     calib = _calibration(calib_files)
-    with _Bar(quiet) as progress:
+    with ProgressBar("linnet run", quiet) as progress:
         return linnet._linnet.run_euroc(str(dataset), cfg, max_frames, start, progress, camchain=calib.camchain,
                                         imu_yaml=calib.imu_yaml, realtime_speed=realtime or 0.0)
 
@@ -164,7 +150,7 @@ def _run_folder(linnet, dataset, cfg, calib_files, max_frames, start, realtime, 
 def _run_bag(linnet, bag, topics, cfg, max_frames, start, realtime, quiet):
     from linnet import bag_run
 
-    with _Bar(quiet) as progress:
+    with ProgressBar("linnet run", quiet) as progress:
         return bag_run.run_bag(bag, topics, cfg, max_frames=max_frames, start_s=start, realtime_speed=realtime or 0.0,
                             progress=progress)
 

@@ -6,24 +6,18 @@ from pathlib import Path
 
 import click
 
-from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE, POSITIVE_SECONDS
+from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE, POSITIVE_SECONDS, key_values
+from linnet.commands.progress import ProgressBar
 
 
 def sensor_config(config_file, overrides, base=None, native_size_of=None):
     """`base` (default: the defaults) + config file + --set; with `native_size_of` = (W, H), the sensor section's image
     size unless --set gives it."""
     import linnet
+    from linnet.api import apply_settings
 
-    cfg = base if base is not None else linnet.Config()
-    if config_file is not None:
-        cfg.merge(str(config_file))
-    given = set()
-    for item in overrides:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise click.BadParameter(f"'{item}' is not KEY=VALUE", param_hint="--set")
-        cfg.set(key.strip(), value, source=f"--set {item}")
-        given.add(key.strip())
+    cfg = apply_settings(base if base is not None else linnet.Config(), config_file, list(overrides))
+    given = {item.partition("=")[0].strip() for item in overrides}
     if native_size_of is not None:
         for key, value in zip(("sensor.width", "sensor.height"), native_size_of):
             if key not in given:
@@ -75,7 +69,8 @@ def COMMAND():
                    "smaller images are padded, larger cropped).")
 @click.option("--config", "config_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Config file (its sensor section: W, H, IMU ranges).")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="Override one config key (repeatable).")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", callback=key_values,
+              help="Override one config key (repeatable).")
 @click.option("--json", "json_file", type=OUTPUT_FILE, help="Write what was sent and dropped as JSON.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def emulate(dataset, port, host, rate, drop_prob, seed, duration, loops, native_size, config_file, overrides, json_file,
@@ -87,7 +82,7 @@ def emulate(dataset, port, host, rate, drop_prob, seed, duration, loops, native_
 
     try:
         cfg = sensor_config(config_file, overrides, native_size_of=_image_size(dataset) if native_size else None)
-        with _Progress(quiet, "emulate") as progress:
+        with ProgressBar("emulate", quiet) as progress:
             report = linnet._linnet.emulate_dataset(str(dataset), cfg, host=host, port=port, rate=rate,
                                                     drop_prob=drop_prob, seed=seed,
                                                     duration_s=-1.0 if duration is None else duration, loops=loops,
@@ -111,7 +106,8 @@ def emulate(dataset, port, host, rate, drop_prob, seed, duration, loops, native_
 @click.option("--duration", type=POSITIVE_SECONDS, default=None, help="Stop after this many seconds of stream.")
 @click.option("--config", "config_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Config file (its sensor section: W, H, IMU ranges).")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="Override one config key (repeatable).")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", callback=key_values,
+              help="Override one config key (repeatable).")
 def record(port, host, out, duration, config_file, overrides):
     """Write the module's stream as a EuRoC folder (replay it with `linnet run`), until --duration, the stream going
     idle (sensor.idle_timeout_s), or Ctrl-C. The calibration is not in the stream: add sensor.yaml files or use
@@ -138,7 +134,8 @@ def record(port, host, out, duration, config_file, overrides):
 @click.option("--duration", type=POSITIVE_SECONDS, default=None, help="Stop after this many seconds of stream.")
 @click.option("--config", "config_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Config file (its sensor section: W, H, IMU ranges, driver policies).")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="Override one config key (repeatable).")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", callback=key_values,
+              help="Override one config key (repeatable).")
 @click.option("--json", "json_file", type=OUTPUT_FILE, help="Write the driver counters as JSON.")
 def listen(port, host, duration, config_file, overrides, json_file):
     """Receive the module's stream with the driver only (no SLAM, nothing written) and print its counters: packets,
@@ -158,23 +155,3 @@ def listen(port, host, duration, config_file, overrides, json_file):
                + f" end={result['end_reason']}")
     if json_file is not None:
         write_json_file(json_file, dict(c, end_reason=result["end_reason"]))
-
-
-class _Progress:
-    def __init__(self, quiet: bool, label: str):
-        self.quiet, self.label = quiet, label
-
-    def __enter__(self):
-        if self.quiet:
-            return None
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-        self.bar = Progress(TextColumn(f"[bold]{self.label}[/bold]"), BarColumn(), MofNCompleteColumn(),
-                            TimeRemainingColumn(), transient=True)
-        self.bar.__enter__()
-        task = self.bar.add_task("frames", total=None)
-        return lambda done, total: self.bar.update(task, completed=done, total=total)
-
-    def __exit__(self, *exc):
-        if not self.quiet:
-            self.bar.__exit__(*exc)

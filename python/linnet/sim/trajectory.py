@@ -14,7 +14,6 @@ straddles a knot.
 from __future__ import annotations
 
 import math
-from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -112,15 +111,7 @@ def _times_ns(path: Path, lines: list, tokens: list, integer_ns: bool) -> np.nda
     """The time column in int64 ns, exactly (decimal arithmetic): integer ns for a EuRoC csv (`integer_ns`), otherwise
     in the unit given by the magnitude of the first time stamp (linnet.timeunits: s, ms, us or ns)."""
     scale = 1 if integer_ns else timeunits.unit_of(float(tokens[0]))[1]
-    t = []
-    for number, tok in zip(lines, tokens):
-        try:
-            value = int((Decimal(tok) * scale).to_integral_value(rounding=ROUND_HALF_EVEN))
-        except (InvalidOperation, ValueError):
-            raise InputError(f"{path}:{number}: bad time stamp '{tok}'") from None
-        if abs(value) >= 2**63:
-            raise InputError(f"{path}:{number}: time stamp '{tok}' is out of the int64 ns range")
-        t.append(value)
+    t = [timeunits.parse_time_ns(path, number, tok, scale) for number, tok in zip(lines, tokens)]
     return np.array(t, dtype=np.int64)
 
 
