@@ -81,6 +81,13 @@ int main(int argc, char** argv) {
                 "real-time factor wall %.3f CPU %.3f\n",
                 r.frames, r.frames_with_pose, r.init_time_s, r.reinitialisations, r.wall_time_s, r.cpu_time_s,
                 r.image_load_cpu_s, r.real_time_factor, r.cpu_real_time_factor);
+    if (cfg.estimator.extrinsics.estimate) {
+      const linnet::Pose& c = r.extrinsics_correction;
+      const linnet::Vec3 w = linnet::logSO3(c.q) * (180.0 / M_PI);
+      std::printf("camera-IMU extrinsics refined online (T_B_R, cameras at T_B_R * T_B_Ci): rotation %.3f deg "
+                  "[%.3f %.3f %.3f], translation %.2f mm [%.2f %.2f %.2f]\n",
+                  w.norm(), w.x(), w.y(), w.z(), 1e3 * c.p.norm(), 1e3 * c.p.x(), 1e3 * c.p.y(), 1e3 * c.p.z());
+    }
     if (!out.empty()) linnet::writeRunOutputs(r, out);
     if (2 * r.frames_with_pose < r.processed_frames || r.processed_frames == 0) {
       std::fprintf(stderr, "linnet_run: tracking failed: %d of %d processed frames have a pose\n", r.frames_with_pose,

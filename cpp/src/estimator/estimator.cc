@@ -137,6 +137,7 @@ EstimatorOutput EstimatorCore::output(const WindowFrame& f) const {
   out.num_points = points_.countUsed();
   out.num_lines = lines_.countUsed();
   out.reinitialisations = reinitialisations_;
+  out.T_B_R = rigCorrection();
   return out;
 }
 
@@ -187,6 +188,7 @@ void EstimatorCore::addInitialPrior(double velocity_sigma) {
   s.acc_bias = o.prior_acc_bias;
   s.gyr_bias = o.prior_gyr_bias;
   priors_.push_back(makeInitialPrior(window_[0], s, &pose_manifold_));
+  addRigPrior();
 }
 
 bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& start, double velocity_sigma) {
@@ -232,7 +234,7 @@ bool EstimatorCore::collectStep(const FrameObservations& obs) {
   points_.triangulatedIn(window_, f.id, &p_W, &uv);
   if (static_cast<int>(p_W.size()) < options_.init.min_points) return false;
   Pose T = f.T_W_B();
-  const PnpResult r = refinePosePnp(p_W, uv, T_B_C0_, options_.solver.focal_length, 3.0 * options_.solver.outlier_px,
+  const PnpResult r = refinePosePnp(p_W, uv, T_B_C0(), options_.solver.focal_length, 3.0 * options_.solver.outlier_px,
                                     &T);
   if (!r.ok || r.rms_px > options_.init.max_pnp_error_px || r.inliers < options_.init.min_points) return false;
   f.setPose(T);
@@ -290,7 +292,7 @@ void EstimatorCore::decideKeyframe(WindowFrame& f, int tracked) {
   in.rotation_rad = logSO3(T_kf.q.conjugate() * T_new.q).norm();
   in.dt_s = toSeconds(f.t - kf->t);
   in.tracked = tracked;
-  const Mat3 R_Cnew_Ckf = ((T_new * T_B_C0_).inverse() * (T_kf * T_B_C0_)).R();
+  const Mat3 R_Cnew_Ckf = ((T_new * T_B_C0()).inverse() * (T_kf * T_B_C0())).R();
   in.parallax_px =
       compensatedParallaxPx(points_.correspondences(kf->id, f.id), R_Cnew_Ckf, options_.solver.focal_length);
   f.keyframe = keyframeDecision(options_.keyframe, in) != KeyframeReason::kNone;

@@ -3,6 +3,7 @@
 // marginalisation / window sliding.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <map>
 #include <memory>
@@ -91,10 +92,28 @@ class EstimatorCore {
   /// constant velocity over the gap), counted as a re-initialisation.
   void restartAfterImuGap(Timestamp t);
 
+  // --- estimator_rig.cc (online extrinsics, options_.extrinsics)
+  /// The current rig correction T_B_R (identity unless extrinsics.estimate).
+  Pose rigCorrection() const;
+  /// cam0's extrinsics as the estimator currently believes them (the calibration's, corrected).
+  Pose T_B_C0() const { return rigCorrection() * T_B_C0_; }
+  /// Wraps the visual residuals that involve body poses in RigCorrectedFactor (no-op when not estimating).
+  void correctRig(std::vector<ResidualSpec>* residuals) const;
+  /// Hands the current correction to the landmarks (after a solve): residuals built from now on contain it.
+  void applyRig();
+  /// The prior on the correction at its current value (when estimating): starts a window.
+  void addRigPrior();
+  /// Data block, ambient size and manifold of a frame or rig key.
+  double* blockOf(BlockKey key);
+  int ambientSizeOf(BlockKey key) const;
+  const ceres::Manifold* manifoldOf(BlockKey key) const;
+
   EstimatorOptions options_;
   ImuNoise noise_;
-  Pose T_B_C0_;
+  Pose T_B_C0_;                    // the calibration's extrinsics
   std::optional<Pose> T_B_C1_;
+  std::array<double, 7> rig_{0, 0, 0, 0, 0, 0, 1};  // rig correction T_B_R block (PoseManifold), see rig_factor.h
+  Pose rig_applied_;               // the correction the landmarks' extrinsics contain
   Vec3 g_W_;
 
   PreintegrationOptions preint_options_;  // with the gap noise of options_.imu_gap

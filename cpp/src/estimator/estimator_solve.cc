@@ -54,6 +54,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
     problem.AddParameterBlock(window_[k].pose.data(), kPoseAmbientSize, &pose_manifold_);
     problem.AddParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize);
   }
+  if (options_.extrinsics.estimate) problem.AddParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_);
   // Keep the cost functions alive for the solve (the problem does not own them).
   std::vector<std::shared_ptr<ceres::CostFunction>> keep;
   std::vector<std::shared_ptr<PriorFactor>> prior_factors;
@@ -61,7 +62,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
     std::vector<double*> blocks;
     bool complete = true;
     for (BlockKey key : prior->keys) {
-      double* b = window_.block(key);
+      double* b = blockOf(key);
       if (b == nullptr) complete = false;
       blocks.push_back(b);
     }
@@ -72,15 +73,16 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   }
   std::vector<ResidualSpec> residuals = imuResiduals(1, window_.size() - 1);
   std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right, frameWeights(false));
-  for (ResidualSpec& r : visual) residuals.push_back(std::move(r));
   {
     ScopedMs timer(&line_ms_);
     std::vector<ResidualSpec> lines = lines_.residuals(window_, -1, frameWeights(true));
     for (ResidualSpec& r : lines) {
       problem.AddParameterBlock(r.blocks[1], kLineAmbientSize, &line_manifold_);
-      residuals.push_back(std::move(r));
+      visual.push_back(std::move(r));
     }
   }
+  correctRig(&visual);
+  for (ResidualSpec& r : visual) residuals.push_back(std::move(r));
   for (const ResidualSpec& r : residuals) {
     problem.AddResidualBlock(r.cost.get(), lossOf(r), r.blocks);
     keep.push_back(r.cost);
@@ -98,8 +100,11 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   opts.linear_solver_type =
       so.linear_solver == "dense_schur" ? ceres::DENSE_SCHUR : ceres::SPARSE_NORMAL_CHOLESKY;
   ceres::Solver::Summary summary;
-  ScopedMs timer(&solver_ms_);
-  ceres::Solve(opts, &problem, &summary);
+  {
+    ScopedMs timer(&solver_ms_);
+    ceres::Solve(opts, &problem, &summary);
+  }
+  applyRig();
 }
 
 void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
@@ -108,10 +113,11 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     solver.addParameterBlock(window_[k].pose.data(), kPoseAmbientSize, &pose_manifold_, false);
     solver.addParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize, nullptr, false);
   }
+  if (options_.extrinsics.estimate) solver.addParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_, false);
   std::vector<std::shared_ptr<PriorFactor>> prior_factors;
   for (const auto& prior : priors_) {
     std::vector<double*> blocks;
-    for (BlockKey key : prior->keys) blocks.push_back(window_.block(key));
+    for (BlockKey key : prior->keys) blocks.push_back(blockOf(key));
     if (std::find(blocks.begin(), blocks.end(), nullptr) != blocks.end()) continue;
     prior_factors.push_back(std::make_shared<PriorFactor>(prior));
     solver.addResidual(prior_factors.back().get(), nullptr, blocks);
@@ -124,6 +130,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     std::vector<ResidualSpec> lines = lines_.residuals(window_, -1, frameWeights(true));
     for (ResidualSpec& r : lines) visual.push_back(std::move(r));
   }
+  correctRig(&visual);
   std::set<BlockKey> landmarks;
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
@@ -138,8 +145,11 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
   SchurLmOptions so;
   so.max_iterations = max_iterations;
   so.max_time_s = options_.solver.max_solver_time_s;
-  ScopedMs timer(&solver_ms_);
-  solver.solve(so);
+  {
+    ScopedMs timer(&solver_ms_);
+    solver.solve(so);
+  }
+  applyRig();
 }
 
 ceres::LossFunction* EstimatorCore::lossOf(const ResidualSpec& r) {
@@ -178,10 +188,7 @@ void EstimatorCore::marginaliseOldest() {
   auto reg = [&](BlockKey key, double* values, int size, const ceres::Manifold* manifold) {
     if (registered.insert(key).second) m.addParameterBlock(key, values, size, manifold);
   };
-  auto regFrameKey = [&](BlockKey key) {
-    const bool pose = key % 4 == static_cast<int>(BlockKind::kPose);
-    reg(key, window_.block(key), pose ? kPoseAmbientSize : kSpeedBiasSize, pose ? &pose_manifold_ : nullptr);
-  };
+  auto regFrameKey = [&](BlockKey key) { reg(key, blockOf(key), ambientSizeOf(key), manifoldOf(key)); };
   const std::vector<BlockKey> drop_frame = {frameBlockKey(old_id, BlockKind::kPose),
                                             frameBlockKey(old_id, BlockKind::kSpeedBias)};
   std::vector<std::shared_ptr<const MarginalizationPrior>> kept_priors;
@@ -202,6 +209,7 @@ void EstimatorCore::marginaliseOldest() {
   }
   std::vector<BlockKey> drop = drop_frame;
   std::vector<ResidualSpec> visual = points_.residuals(window_, old_id, false, frameWeights(false));
+  correctRig(&visual);
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
       if (r.keys[b] >= 0) {
@@ -215,11 +223,16 @@ void EstimatorCore::marginaliseOldest() {
   }
   if (options_.lines.marginalise) {
     ScopedMs timer(&line_ms_);
-    for (const ResidualSpec& r : lines_.residuals(window_, old_id, frameWeights(true))) {
-      regFrameKey(r.keys[0]);
-      if (registered.insert(r.keys[1]).second) {
-        m.addParameterBlock(r.keys[1], r.blocks[1], kLineAmbientSize, &line_manifold_);
-        drop.push_back(r.keys[1]);
+    std::vector<ResidualSpec> lines = lines_.residuals(window_, old_id, frameWeights(true));
+    correctRig(&lines);
+    for (const ResidualSpec& r : lines) {
+      for (std::size_t b = 0; b < r.keys.size(); ++b) {
+        if (r.keys[b] >= 0) {
+          regFrameKey(r.keys[b]);
+        } else if (registered.insert(r.keys[b]).second) {
+          m.addParameterBlock(r.keys[b], r.blocks[b], kLineAmbientSize, &line_manifold_);
+          drop.push_back(r.keys[b]);
+        }
       }
       m.addResidual(r.cost, lossOf(r), r.keys);
     }
@@ -249,11 +262,7 @@ void EstimatorCore::dropFrame(int index) {
       continue;
     }
     Marginaliser m;
-    for (BlockKey k : prior->keys) {
-      const bool pose = k % 4 == static_cast<int>(BlockKind::kPose);
-      m.addParameterBlock(k, window_.block(k), pose ? kPoseAmbientSize : kSpeedBiasSize,
-                          pose ? &pose_manifold_ : nullptr);
-    }
+    for (BlockKey k : prior->keys) m.addParameterBlock(k, blockOf(k), ambientSizeOf(k), manifoldOf(k));
     m.addResidual(std::make_shared<PriorFactor>(prior), nullptr, prior->keys);
     if (auto p = m.marginalise(d)) next.push_back(p);
   }

@@ -188,6 +188,7 @@ RunSummary StreamRun::finish() {
       ++summary.frames_with_pose;
     }
     summary.reinitialisations = std::max(summary.reinitialisations, r.estimate.reinitialisations);
+    if (r.estimate.has_pose) summary.extrinsics_correction = r.estimate.T_B_R;
   }
   if (!started_) pace(0);
   summary.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();

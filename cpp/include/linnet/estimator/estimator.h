@@ -38,6 +38,8 @@ struct EstimatorOutput {
                                // residuals, reject outliers, marginalise), ms; the joint solve is in solver_ms
   double solver_ms = 0.0;      // wall time of the window solve (points, lines, IMU, prior), ms
   int reinitialisations = 0;   // so far
+  Pose T_B_R;                  // online correction of the rig's extrinsics (cameras at T_B_R * T_B_Ci); identity
+                               // unless estimator.extrinsics.estimate
   double solve_ms = 0.0;       // back-end wall time for this frame
 };
 

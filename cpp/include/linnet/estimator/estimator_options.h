@@ -215,6 +215,22 @@ struct ImuWeightOptions {
   }
 };
 
+/// Online refinement of the camera-IMU extrinsics (factors/rig_factor.h): one rigid correction of the stereo rig
+/// against the IMU, common to both cameras, estimated in the window with a prior at the calibration.
+struct ExtrinsicsOptions {
+  bool estimate = false;              // refine the rig's extrinsics online
+  double prior_rotation_deg = 0.5;    // prior sigma of the rotation correction (per axis), deg
+  double prior_translation_m = 0.01;  // prior sigma of the translation correction (per axis), m
+
+  template <class V>
+  void visit(V& v) {
+    v("estimate", estimate, "refine the camera-IMU extrinsics (common to both cameras) online");
+    v("prior_rotation_deg", prior_rotation_deg, "prior sigma of the extrinsic rotation correction, deg", 1e-6, 30.0);
+    v("prior_translation_m", prior_translation_m, "prior sigma of the extrinsic translation correction, m", 1e-9,
+      1.0);
+  }
+};
+
 struct EstimatorOptions {
   int window_size = 7;               // keyframes in the window (plus the newest frame); full V1_02 replay:
                                      // 7 vs 10 gives APE 11 vs 15 mm for ~15% less CPU
@@ -225,6 +241,7 @@ struct EstimatorOptions {
   LineOptions lines;
   ImuWeightOptions imu;
   ImuGapOptions imu_gap;
+  ExtrinsicsOptions extrinsics;
 
   template <class V>
   void visit(V& v) {
@@ -236,6 +253,7 @@ struct EstimatorOptions {
     v.section("init", init);
     v.section("failure", failure);
     v.section("lines", lines);
+    v.section("extrinsics", extrinsics);
   }
 };
 

@@ -95,6 +95,13 @@ class LineLandmarks {
   /// Triangulation of one line from its window observations (exposed for tests). False if no candidate passes.
   bool triangulateOne(const Window& window, LineLandmark& lm) const;
 
+  /// The cameras' extrinsics from now on (the estimator's online refinement of the rig); residuals built
+  /// afterwards use them.
+  void setExtrinsics(const Pose& T_B_C0, std::optional<Pose> T_B_C1) {
+    T_B_C0_ = T_B_C0;
+    T_B_C1_ = std::move(T_B_C1);
+  }
+
  private:
   /// Mean endpoint distance in pixels over the line's window observations (cam0 and cam1).
   double meanErrorPx(const Window& window, const LineLandmark& lm) const;

@@ -78,6 +78,13 @@ class PointLandmarks {
   /// World position of a triangulated landmark (its host must be in the window).
   Vec3 worldPosition(const Window& window, const PointLandmark& lm) const;
 
+  /// The cameras' extrinsics from now on (the estimator's online refinement of the rig); residuals built
+  /// afterwards use them.
+  void setExtrinsics(const Pose& T_B_C0, std::optional<Pose> T_B_C1) {
+    T_B_C0_ = T_B_C0;
+    T_B_C1_ = std::move(T_B_C1);
+  }
+
  private:
   bool triangulateOne(const Window& window, PointLandmark& lm) const;
   double meanErrorPx(const Window& window, const PointLandmark& lm) const;

@@ -41,6 +41,7 @@ struct RunSummary {
   Timestamp first_imu_t = 0, last_imu_t = 0;      // of the first / last IMU sample handed over (ns; 0: none)
   int imu_samples = 0;
   bool stereo = true;                     // the run used cam0 + cam1 (false: monocular)
+  Pose extrinsics_correction;             // the last pose's online rig correction T_B_R (estimator.extrinsics)
   std::vector<std::string> warnings;      // accepted but worth knowing (the dataset's, and the runner's)
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;

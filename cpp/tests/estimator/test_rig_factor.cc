@@ -1,0 +1,172 @@
+// Online rig extrinsics (RigCorrectedFactor): the wrapped point and line residuals equal the inner factors built
+// with the corrected extrinsics, and their Jacobians (body poses, landmark, correction) match numeric differences
+// through the manifolds (the shared checker, which fails on a wrong Jacobian).
+#include "linnet/estimator/factors/rig_factor.h"
+
+#include <array>
+#include <memory>
+#include <random>
+
+#include <ceres/sized_cost_function.h>
+#include <gtest/gtest.h>
+
+#include "linnet/estimator/factors/line_factor.h"
+#include "linnet/estimator/factors/point_factors.h"
+#include "linnet/estimator/manifolds.h"
+#include "linnet/geometry/plucker.h"
+#include "support/jacobian_check.h"
+
+namespace linnet {
+namespace {
+
+constexpr double kFocal = 458.0;
+constexpr double kTol = 1e-6;
+
+Pose randomPose(std::mt19937& rng, double angle, double spread) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  return Pose(expSO3(angle * Vec3(n(rng), n(rng), n(rng))), spread * Vec3(n(rng), n(rng), n(rng)));
+}
+
+// EuRoC-like extrinsics: camera looking along the body's x axis, 11 cm baseline.
+Pose cam0() { return Pose(Mat3((Mat3() << 0, 0, 1, -1, 0, 0, 0, -1, 0).finished()), Vec3(-0.02, -0.06, 0.01)); }
+Pose cam1() { return cam0() * Pose(expSO3(Vec3(0.002, -0.001, 0.003)), Vec3(0.11, 0.0, 0.0)); }
+
+std::array<double, 7> block(const Pose& T) {
+  std::array<double, 7> b{};
+  setPose(T, b.data());
+  return b;
+}
+
+struct PointCase {
+  Pose T_W_Bi, T_W_Bj, T_B_R0, T_B_R;
+  Vec2 uv_host, uv_target;
+  double rho = 0.3;
+};
+
+/// Two body poses seeing a point 1-10 m ahead of the host camera; the corrections are ~0.5 deg / 1 cm.
+PointCase pointCase(std::mt19937& rng, const Pose& T_B_Ct) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0), depth(1.0, 10.0);
+  PointCase c;
+  for (;;) {
+    c.T_W_Bi = randomPose(rng, 1.0, 3.0);
+    c.T_W_Bj = c.T_W_Bi * randomPose(rng, 0.1, 0.2);
+    c.T_B_R0 = randomPose(rng, 0.01, 0.01);
+    c.T_B_R = randomPose(rng, 0.01, 0.01);
+    c.uv_host = Vec2(0.4 * u(rng), 0.3 * u(rng));
+    const double d = depth(rng);
+    c.rho = 1.0 / d;
+    const Vec3 p_W = (c.T_W_Bi * c.T_B_R * cam0()) * (Vec3(c.uv_host.x(), c.uv_host.y(), 1.0) * d);
+    const Vec3 p_C = (c.T_W_Bj * c.T_B_R * T_B_Ct).inverse() * p_W;
+    if (p_C.z() < 0.5) continue;
+    c.uv_target = p_C.head<2>() / p_C.z() + Vec2(u(rng), u(rng)) * (2.0 / kFocal);  // off the truth
+    return c;
+  }
+}
+
+TEST(RigFactor, PointResidualEqualsTheInnerFactorWithCorrectedExtrinsics) {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 20; ++trial) {
+    const PointCase c = pointCase(rng, cam1());
+    const double s = pointSqrtInformation(kFocal);
+    // Built with the extrinsics of correction R0, evaluated at correction R: as if built with R.
+    auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
+                                                           c.T_B_R0 * cam1(), s);
+    const PointReprojectionFactor direct(c.uv_host, c.uv_target, c.T_B_R * cam0(), c.T_B_R * cam1(), s);
+    const RigCorrectedFactor wrapped(inner, {0, 1}, c.T_B_R0);
+    auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
+    double rho = c.rho;
+    const double* pw[4] = {bi.data(), bj.data(), &rho, br.data()};
+    const double* pd[3] = {bi.data(), bj.data(), &rho};
+    double rw[2], rd[2];
+    ASSERT_TRUE(wrapped.Evaluate(pw, rw, nullptr));
+    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
+    EXPECT_NEAR(rw[0], rd[0], 1e-9);
+    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    EXPECT_EQ(wrapped.parameter_block_sizes(), (std::vector<int32_t>{7, 7, 1, 7}));
+  }
+}
+
+TEST(RigFactor, PointJacobiansSameCameraAndLeftToRight) {
+  std::mt19937 rng(12);
+  const PoseManifold pm;
+  for (int trial = 0; trial < 60; ++trial) {
+    const Pose target = trial % 2 == 0 ? cam0() : cam1();
+    const PointCase c = pointCase(rng, target);
+    auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
+                                                           c.T_B_R0 * target, pointSqrtInformation(kFocal));
+    const RigCorrectedFactor f(inner, {0, 1}, c.T_B_R0);
+    auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
+    double rho = c.rho;
+    ASSERT_TRUE(testing::jacobiansMatch(f, {bi.data(), bj.data(), &rho, br.data()}, {&pm, &pm, nullptr, &pm}, kTol))
+        << "trial " << trial;
+  }
+}
+
+TEST(RigFactor, LineJacobiansAndResidual) {
+  std::mt19937 rng(13);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const PoseManifold pm;
+  const LineManifold lm;
+  for (int trial = 0; trial < 60; ++trial) {
+    const Pose T_W_B = randomPose(rng, 1.0, 3.0);
+    const Pose T_B_R0 = randomPose(rng, 0.01, 0.01), T_B_R = randomPose(rng, 0.01, 0.01);
+    const Pose T_B_C = trial % 2 == 0 ? cam0() : cam1();
+    const Pose T_W_C = T_W_B * T_B_R * T_B_C;
+    const Vec3 a_C(-0.8 + 0.2 * n(rng), 0.3 * n(rng), 4.0 + 0.5 * n(rng));
+    const Vec3 b_C(0.7 + 0.2 * n(rng), 0.3 * n(rng), 3.5 + 0.5 * n(rng));
+    Vec6 L = normalisePlucker(pluckerFromPoints(T_W_C * a_C, T_W_C * b_C));
+    const Vec2 s = a_C.head<2>() / a_C.z() + Vec2(n(rng), n(rng)) / kFocal;
+    const Vec2 e = b_C.head<2>() / b_C.z() + Vec2(n(rng), n(rng)) / kFocal;
+    auto inner = std::make_shared<LineReprojectionFactor>(s, e, T_B_R0 * T_B_C, kFocal);
+    const LineReprojectionFactor direct(s, e, T_B_R * T_B_C, kFocal);
+    const RigCorrectedFactor f(inner, {0}, T_B_R0);
+    auto bp = block(T_W_B), br = block(T_B_R);
+    const double* pw[3] = {bp.data(), L.data(), br.data()};
+    const double* pd[2] = {bp.data(), L.data()};
+    double rw[2], rd[2];
+    ASSERT_TRUE(f.Evaluate(pw, rw, nullptr));
+    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
+    EXPECT_NEAR(rw[0], rd[0], 1e-9);
+    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    ASSERT_TRUE(testing::jacobiansMatch(f, {bp.data(), L.data(), br.data()}, {&pm, &lm, &pm}, kTol))
+        << "trial " << trial;
+  }
+}
+
+/// The wrapped factor with one entry of its correction Jacobian scaled: the checker must reject it.
+class CorruptRig : public ceres::CostFunction {
+ public:
+  CorruptRig(const RigCorrectedFactor& f, int entry) : f_(f), entry_(entry) {
+    set_num_residuals(f.num_residuals());
+    *mutable_parameter_block_sizes() = f.parameter_block_sizes();
+  }
+  bool Evaluate(double const* const* p, double* r, double** J) const override {
+    if (!f_.Evaluate(p, r, J)) return false;
+    if (J != nullptr && J[3] != nullptr) J[3][entry_] *= 1.0 + 1e-3;
+    return true;
+  }
+
+ private:
+  const RigCorrectedFactor& f_;
+  int entry_;
+};
+
+TEST(RigFactor, CheckerRejectsAWrongCorrectionJacobian) {
+  std::mt19937 rng(14);
+  const PoseManifold pm;
+  const PointCase c = pointCase(rng, cam1());
+  auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
+                                                         c.T_B_R0 * cam1(), pointSqrtInformation(kFocal));
+  const RigCorrectedFactor f(inner, {0, 1}, c.T_B_R0);
+  auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
+  double rho = c.rho;
+  const std::vector<double*> params = {bi.data(), bj.data(), &rho, br.data()};
+  ASSERT_TRUE(testing::checkJacobians(f, params, {&pm, &pm, nullptr, &pm}).ok(kTol));
+  for (int entry : {1, 4, 7 + 2, 7 + 5}) {  // position and rotation columns of both rows
+    const CorruptRig bad(f, entry);
+    EXPECT_FALSE(testing::checkJacobians(bad, params, {&pm, &pm, nullptr, &pm}).ok(kTol)) << "entry " << entry;
+  }
+}
+
+}  // namespace
+}  // namespace linnet
