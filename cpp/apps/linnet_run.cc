@@ -88,6 +88,9 @@ int main(int argc, char** argv) {
                   "[%.3f %.3f %.3f], translation %.2f mm [%.2f %.2f %.2f]\n",
                   w.norm(), w.x(), w.y(), w.z(), 1e3 * c.p.norm(), 1e3 * c.p.x(), 1e3 * c.p.y(), 1e3 * c.p.z());
     }
+    if (cfg.estimator.time_offset.estimate)
+      std::printf("camera-to-IMU time offset estimated online: %.3f ms (camera stamp - capture time)\n",
+                  1e3 * r.time_offset_s);
     if (!out.empty()) linnet::writeRunOutputs(r, out);
     if (2 * r.frames_with_pose < r.processed_frames || r.processed_frames == 0) {
       std::fprintf(stderr, "linnet_run: tracking failed: %d of %d processed frames have a pose\n", r.frames_with_pose,

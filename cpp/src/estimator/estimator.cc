@@ -63,6 +63,7 @@ EstimatorCore::EstimatorCore(const EstimatorOptions& options, const ImuNoise& no
       lines_(options.lines, options.solver.focal_length, T_B_C0, T_B_C1),
       huber_(options.solver.huber_px),
       line_huber_(options.lines.huber_px) {
+  time_offset_[0] = 1e-3 * options.time_offset.initial_ms;
   preint_options_.gap_dt_s = options.imu_gap.gap_periods / noise.rate_hz;
   preint_options_.gap_acc_sigma = options.imu_gap.acc_sigma;
   preint_options_.gap_gyr_sigma = options.imu_gap.gyr_sigma;
@@ -138,6 +139,7 @@ EstimatorOutput EstimatorCore::output(const WindowFrame& f) const {
   out.num_lines = lines_.countUsed();
   out.reinitialisations = reinitialisations_;
   out.T_B_R = rigCorrection();
+  out.time_offset_s = time_offset_[0];
   return out;
 }
 
@@ -165,6 +167,7 @@ WindowFrame& EstimatorCore::pushPredicted(Timestamp t) {
   f.setPose(s.T_W_B);
   f.setV(s.v_W);
   f.setBiases(s.b_a, s.b_g);
+  f.gyr = gyroAt(t);
   return f;
 }
 
@@ -188,7 +191,7 @@ void EstimatorCore::addInitialPrior(double velocity_sigma) {
   s.acc_bias = o.prior_acc_bias;
   s.gyr_bias = o.prior_gyr_bias;
   priors_.push_back(makeInitialPrior(window_[0], s, &pose_manifold_));
-  addRigPrior();
+  addCalibrationPriors();
 }
 
 bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& start, double velocity_sigma) {
@@ -196,6 +199,7 @@ bool EstimatorCore::startWindow(const FrameObservations& obs, const NavState& st
   clearLandmarks();
   priors_.clear();
   WindowFrame& f = window_.push(obs.t);
+  f.gyr = gyroAt(obs.t);
   f.setPose(start.T_W_B);
   f.setV(start.v_W);
   f.setBiases(start.b_a, start.b_g);

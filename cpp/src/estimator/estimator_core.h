@@ -92,18 +92,21 @@ class EstimatorCore {
   /// constant velocity over the gap), counted as a re-initialisation.
   void restartAfterImuGap(Timestamp t);
 
-  // --- estimator_rig.cc (online extrinsics, options_.extrinsics)
+  // --- estimator_calibration.cc (online extrinsics and time offset, options_.extrinsics / time_offset)
   /// The current rig correction T_B_R (identity unless extrinsics.estimate).
   Pose rigCorrection() const;
   /// cam0's extrinsics as the estimator currently believes them (the calibration's, corrected).
   Pose T_B_C0() const { return rigCorrection() * T_B_C0_; }
-  /// Wraps the visual residuals that involve body poses in RigCorrectedFactor (no-op when not estimating).
-  void correctRig(std::vector<ResidualSpec>* residuals) const;
-  /// Hands the current correction to the landmarks (after a solve): residuals built from now on contain it.
+  /// Wraps the visual residuals that involve body poses in RigCorrectedFactor and TimeShiftedFactor (each when
+  /// estimated).
+  void correctCalibration(std::vector<ResidualSpec>* residuals);
+  /// Hands the current rig correction to the landmarks (after a solve): residuals built from now on contain it.
   void applyRig();
-  /// The prior on the correction at its current value (when estimating): starts a window.
-  void addRigPrior();
-  /// Data block, ambient size and manifold of a frame or rig key.
+  /// The priors on the rig correction and the time offset at their current values (those estimated): start a window.
+  void addCalibrationPriors();
+  /// Measured angular rate at t: mean of the gyroscope over the 10 ms before t (zero if the IMU does not cover it).
+  Vec3 gyroAt(Timestamp t) const;
+  /// Data block, ambient size and manifold of a frame, rig or time-offset key.
   double* blockOf(BlockKey key);
   int ambientSizeOf(BlockKey key) const;
   const ceres::Manifold* manifoldOf(BlockKey key) const;
@@ -112,8 +115,9 @@ class EstimatorCore {
   ImuNoise noise_;
   Pose T_B_C0_;                    // the calibration's extrinsics
   std::optional<Pose> T_B_C1_;
-  std::array<double, 7> rig_{0, 0, 0, 0, 0, 0, 1};  // rig correction T_B_R block (PoseManifold), see rig_factor.h
+  std::array<double, 7> rig_{0, 0, 0, 0, 0, 0, 1};  // rig correction T_B_R block (PoseManifold), see pose_wrappers.h
   Pose rig_applied_;               // the correction the landmarks' extrinsics contain
+  std::array<double, 1> time_offset_{0.0};  // camera-to-IMU time offset t_d, s
   Vec3 g_W_;
 
   PreintegrationOptions preint_options_;  // with the gap noise of options_.imu_gap

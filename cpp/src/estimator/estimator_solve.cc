@@ -55,6 +55,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
     problem.AddParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize);
   }
   if (options_.extrinsics.estimate) problem.AddParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_);
+  if (options_.time_offset.estimate) problem.AddParameterBlock(time_offset_.data(), 1);
   // Keep the cost functions alive for the solve (the problem does not own them).
   std::vector<std::shared_ptr<ceres::CostFunction>> keep;
   std::vector<std::shared_ptr<PriorFactor>> prior_factors;
@@ -81,7 +82,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
       visual.push_back(std::move(r));
     }
   }
-  correctRig(&visual);
+  correctCalibration(&visual);
   for (ResidualSpec& r : visual) residuals.push_back(std::move(r));
   for (const ResidualSpec& r : residuals) {
     problem.AddResidualBlock(r.cost.get(), lossOf(r), r.blocks);
@@ -114,6 +115,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     solver.addParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize, nullptr, false);
   }
   if (options_.extrinsics.estimate) solver.addParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_, false);
+  if (options_.time_offset.estimate) solver.addParameterBlock(time_offset_.data(), 1, nullptr, false);
   std::vector<std::shared_ptr<PriorFactor>> prior_factors;
   for (const auto& prior : priors_) {
     std::vector<double*> blocks;
@@ -130,7 +132,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     std::vector<ResidualSpec> lines = lines_.residuals(window_, -1, frameWeights(true));
     for (ResidualSpec& r : lines) visual.push_back(std::move(r));
   }
-  correctRig(&visual);
+  correctCalibration(&visual);
   std::set<BlockKey> landmarks;
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
@@ -209,7 +211,7 @@ void EstimatorCore::marginaliseOldest() {
   }
   std::vector<BlockKey> drop = drop_frame;
   std::vector<ResidualSpec> visual = points_.residuals(window_, old_id, false, frameWeights(false));
-  correctRig(&visual);
+  correctCalibration(&visual);
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
       if (r.keys[b] >= 0) {
@@ -224,7 +226,7 @@ void EstimatorCore::marginaliseOldest() {
   if (options_.lines.marginalise) {
     ScopedMs timer(&line_ms_);
     std::vector<ResidualSpec> lines = lines_.residuals(window_, old_id, frameWeights(true));
-    correctRig(&lines);
+    correctCalibration(&lines);
     for (const ResidualSpec& r : lines) {
       for (std::size_t b = 0; b < r.keys.size(); ++b) {
         if (r.keys[b] >= 0) {

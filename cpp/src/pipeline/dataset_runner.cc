@@ -188,7 +188,10 @@ RunSummary StreamRun::finish() {
       ++summary.frames_with_pose;
     }
     summary.reinitialisations = std::max(summary.reinitialisations, r.estimate.reinitialisations);
-    if (r.estimate.has_pose) summary.extrinsics_correction = r.estimate.T_B_R;
+    if (r.estimate.has_pose) {
+      summary.extrinsics_correction = r.estimate.T_B_R;
+      summary.time_offset_s = r.estimate.time_offset_s;
+    }
   }
   if (!started_) pace(0);
   summary.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();

@@ -40,6 +40,7 @@ struct EstimatorOutput {
   int reinitialisations = 0;   // so far
   Pose T_B_R;                  // online correction of the rig's extrinsics (cameras at T_B_R * T_B_Ci); identity
                                // unless estimator.extrinsics.estimate
+  double time_offset_s = 0.0;  // camera-to-IMU time offset in use (estimator.time_offset), s
   double solve_ms = 0.0;       // back-end wall time for this frame
 };
 

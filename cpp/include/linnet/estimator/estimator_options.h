@@ -215,7 +215,7 @@ struct ImuWeightOptions {
   }
 };
 
-/// Online refinement of the camera-IMU extrinsics (factors/rig_factor.h): one rigid correction of the stereo rig
+/// Online refinement of the camera-IMU extrinsics (factors/pose_wrappers.h): one rigid correction of the stereo rig
 /// against the IMU, common to both cameras, estimated in the window with a prior at the calibration.
 struct ExtrinsicsOptions {
   bool estimate = false;              // refine the rig's extrinsics online
@@ -231,6 +231,22 @@ struct ExtrinsicsOptions {
   }
 };
 
+/// Online estimation of the camera-to-IMU time offset t_d (factors/pose_wrappers.h, TimeShiftedFactor): camera stamps
+/// are taken as the capture time on the IMU clock plus t_d (Kalibr's timeshift_cam_imu is -t_d).
+struct TimeOffsetOptions {
+  bool estimate = false;    // estimate t_d online
+  double initial_ms = 0.0;  // t_d to start from (and the prior's mean), ms
+  double prior_ms = 5.0;    // prior sigma of t_d, ms
+
+  template <class V>
+  void visit(V& v) {
+    v("estimate", estimate, "estimate the camera-to-IMU time offset online");
+    v("initial_ms", initial_ms, "camera-to-IMU time offset to start from (camera stamp - capture time), ms", -1000.0,
+      1000.0);
+    v("prior_ms", prior_ms, "prior sigma of the camera-to-IMU time offset, ms", 1e-6, 1000.0);
+  }
+};
+
 struct EstimatorOptions {
   int window_size = 7;               // keyframes in the window (plus the newest frame); full V1_02 replay:
                                      // 7 vs 10 gives APE 11 vs 15 mm for ~15% less CPU
@@ -242,6 +258,7 @@ struct EstimatorOptions {
   ImuWeightOptions imu;
   ImuGapOptions imu_gap;
   ExtrinsicsOptions extrinsics;
+  TimeOffsetOptions time_offset;
 
   template <class V>
   void visit(V& v) {
@@ -254,6 +271,7 @@ struct EstimatorOptions {
     v.section("failure", failure);
     v.section("lines", lines);
     v.section("extrinsics", extrinsics);
+    v.section("time_offset", time_offset);
   }
 };
 

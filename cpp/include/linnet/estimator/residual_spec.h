@@ -22,8 +22,10 @@ struct ResidualSpec {
 /// Marginalisation keys of landmark blocks. Frame blocks use frameBlockKey() (>= 0), landmarks negative keys.
 inline std::int64_t pointBlockKey(std::int64_t landmark_id) { return -(2 * landmark_id + 1); }
 inline std::int64_t lineBlockKey(std::int64_t landmark_id) { return -(2 * landmark_id + 2); }
-/// Key of the online rig-extrinsics correction (factors/rig_factor.h): non-negative, so it is kept like the frame
+/// Key of the online rig-extrinsics correction (factors/pose_wrappers.h): non-negative, so it is kept like the frame
 /// blocks, and never a frame block's key (those are 4 id + 0 or 1).
 inline constexpr std::int64_t kRigBlockKey = 2;
+/// Key of the online camera-to-IMU time offset (1 value, seconds); likewise.
+inline constexpr std::int64_t kTimeOffsetBlockKey = 3;
 
 }  // namespace linnet

@@ -27,6 +27,7 @@ struct WindowFrame {
   std::array<double, 9> speed_bias{};               // v_W (3), b_a (3), b_g (3)
   std::unique_ptr<Preintegration> preint;           // previous window frame -> this frame; null for the oldest
   bool keyframe = false;
+  Vec3 gyr = Vec3::Zero();                          // measured angular rate at t (mean over the last 10 ms), rad/s
 
   Pose T_W_B() const;
   void setPose(const Pose& T);

@@ -42,6 +42,7 @@ struct RunSummary {
   int imu_samples = 0;
   bool stereo = true;                     // the run used cam0 + cam1 (false: monocular)
   Pose extrinsics_correction;             // the last pose's online rig correction T_B_R (estimator.extrinsics)
+  double time_offset_s = 0.0;             // the last pose's camera-to-IMU time offset (estimator.time_offset), s
   std::vector<std::string> warnings;      // accepted but worth knowing (the dataset's, and the runner's)
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;

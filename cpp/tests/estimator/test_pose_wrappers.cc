@@ -1,7 +1,8 @@
-// Online rig extrinsics (RigCorrectedFactor): the wrapped point and line residuals equal the inner factors built
-// with the corrected extrinsics, and their Jacobians (body poses, landmark, correction) match numeric differences
-// through the manifolds (the shared checker, which fails on a wrong Jacobian).
-#include "linnet/estimator/factors/rig_factor.h"
+// Online rig extrinsics and time offset (RigCorrectedFactor, TimeShiftedFactor): the wrapped point and line
+// residuals equal the inner factors at the corrected / shifted poses, and their Jacobians (body poses, landmark,
+// correction, offset; alone and nested as the estimator nests them) match numeric differences through the
+// manifolds (the shared checker, which fails on a wrong Jacobian).
+#include "linnet/estimator/factors/pose_wrappers.h"
 
 #include <array>
 #include <memory>
@@ -165,6 +166,65 @@ TEST(RigFactor, CheckerRejectsAWrongCorrectionJacobian) {
   for (int entry : {1, 4, 7 + 2, 7 + 5}) {  // position and rotation columns of both rows
     const CorruptRig bad(f, entry);
     EXPECT_FALSE(testing::checkJacobians(bad, params, {&pm, &pm, nullptr, &pm}).ok(kTol)) << "entry " << entry;
+  }
+}
+
+TEST(TimeShiftedFactor, ResidualIsTheInnerFactorAtTheShiftedPoses) {
+  std::mt19937 rng(15);
+  for (int trial = 0; trial < 20; ++trial) {
+    const PointCase c = pointCase(rng, cam1());
+    const double s = pointSqrtInformation(kFocal);
+    auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, cam0(), cam1(), s);
+    const std::vector<Vec3> v = {Vec3(1.0, -0.5, 0.2), Vec3(0.3, 0.8, -0.1)};
+    const std::vector<Vec3> w = {Vec3(0.5, -1.0, 0.3), Vec3(-0.2, 0.4, 1.5)};
+    const TimeShiftedFactor f(inner, {0, 1}, v, w);
+    double td = 0.004;
+    // By hand: the body at t - t_d to first order.
+    const Pose Ti(c.T_W_Bi.q * expSO3(-td * w[0]), c.T_W_Bi.p - td * v[0]);
+    const Pose Tj(c.T_W_Bj.q * expSO3(-td * w[1]), c.T_W_Bj.p - td * v[1]);
+    auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), si = block(Ti), sj = block(Tj);
+    double rho = c.rho;
+    const double* pw[4] = {bi.data(), bj.data(), &rho, &td};
+    const double* pd[3] = {si.data(), sj.data(), &rho};
+    double rw[2], rd[2];
+    ASSERT_TRUE(f.Evaluate(pw, rw, nullptr));
+    ASSERT_TRUE(inner->Evaluate(pd, rd, nullptr));
+    EXPECT_NEAR(rw[0], rd[0], 1e-9);
+    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    EXPECT_EQ(f.parameter_block_sizes(), (std::vector<int32_t>{7, 7, 1, 1}));
+  }
+}
+
+TEST(TimeShiftedFactor, JacobiansAloneAndAroundTheRigCorrection) {
+  std::mt19937 rng(16);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const PoseManifold pm;
+  const LineManifold lm;
+  auto rnd = [&](double scale) { return Vec3(scale * n(rng), scale * n(rng), scale * n(rng)); };
+  for (int trial = 0; trial < 40; ++trial) {
+    const PointCase c = pointCase(rng, trial % 2 == 0 ? cam0() : cam1());
+    const std::vector<Vec3> v = {rnd(1.0), rnd(1.0)}, w = {rnd(1.0), rnd(1.0)};
+    double td = 0.01 * n(rng), rho = c.rho;
+    auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
+    auto point = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
+                                                           c.T_B_R0 * (trial % 2 == 0 ? cam0() : cam1()),
+                                                           pointSqrtInformation(kFocal));
+    const TimeShiftedFactor alone(point, {0, 1}, v, w);
+    ASSERT_TRUE(testing::jacobiansMatch(alone, {bi.data(), bj.data(), &rho, &td}, {&pm, &pm, nullptr, nullptr}, kTol))
+        << "trial " << trial;
+    // As the estimator nests them: the rig correction inside, the time shift outside.
+    auto rig = std::make_shared<RigCorrectedFactor>(point, std::vector<int>{0, 1}, c.T_B_R0);
+    const TimeShiftedFactor nested(rig, {0, 1}, v, w);
+    ASSERT_TRUE(testing::jacobiansMatch(nested, {bi.data(), bj.data(), &rho, br.data(), &td},
+                                        {&pm, &pm, nullptr, &pm, nullptr}, kTol))
+        << "trial " << trial;
+    // A line residual.
+    const Pose T_W_C = c.T_W_Bi * cam0();
+    Vec6 L = normalisePlucker(pluckerFromPoints(T_W_C * Vec3(-0.8, 0.1, 4.0), T_W_C * Vec3(0.7, -0.2, 3.5)));
+    auto line = std::make_shared<LineReprojectionFactor>(Vec2(-0.2, 0.03), Vec2(0.2, -0.05), cam0(), kFocal);
+    const TimeShiftedFactor shifted_line(line, {0}, {v[0]}, {w[0]});
+    ASSERT_TRUE(testing::jacobiansMatch(shifted_line, {bi.data(), L.data(), &td}, {&pm, &lm, nullptr}, kTol))
+        << "trial " << trial;
   }
 }
 

@@ -1,0 +1,90 @@
+// Visual residuals seen through a change of their body poses: the online camera-IMU extrinsics and time offset.
+//
+// PoseWrappedFactor takes a residual (the "inner" factor) whose blocks `pose_blocks` are body poses T_W_Bk (7,
+// PoseManifold), replaces each by a transformed pose T'_k = f(T_W_Bk, x) of it and one extra block x, and chains
+// the inner factor's tangent Jacobians through f. With PoseManifold's tangent convention (p <- p + dp,
+// R <- R Exp(dth)) a subclass gives, per pose, T'_k and the 6 x 6 / 6 x n maps from the body's and x's tangents to
+// T'_k's tangent. Residuals without a pose block (the same-frame stereo point residual) are never wrapped.
+//
+// RigCorrectedFactor: the stereo pair is calibrated well relative to itself (the target is seen by both cameras at
+// once) and less well relative to the IMU (that part is observed only through the motion). The estimator refines one
+// rigid correction T_B_R of the whole rig on the body side, common to both cameras (as OKVIS and VINS-Mono refine
+// T_B_C, with the stereo baseline kept): the cameras' extrinsics are T_B_R * T_B_Ci. An inner factor built with the
+// extrinsics of an earlier correction T_B_R0 sees T'_k = T_W_Bk * T_B_R * T_B_R0^-1. With M = T_B_R * D, D = T_B_R0^-1:
+//     body:       dp' = dp - R_Bk [t_M]x dth,            dth' = R_M^T dth
+//     correction: dp' = R_Bk dt - R_Bk R_BR [t_D]x dth,  dth' = R_D^T dth
+//
+// TimeShiftedFactor: a camera stamp t is the capture time on the IMU clock plus an offset t_d (Kalibr's
+// timeshift_cam_imu is -t_d). The image was taken at t - t_d, when the body was at
+//     T'_k = (p_k - t_d v_k, R_k Exp(-t_d w_k))
+// to first order, with v_k (velocity in W) and w_k (bias-corrected angular rate in B) taken at frame k when the
+// residual is built (as constants: the residuals are rebuilt at every solve). This is the pose-side form of the
+// feature-velocity correction of Qin and Shen, "Online temporal calibration for monocular visual-inertial
+// systems", IROS 2018. With E = Exp(-t_d w_k):
+//     body:   dp' = dp,  dth' = E^T dth;      offset: dp' = -v_k dt_d,  dth' = -w_k dt_d
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <ceres/cost_function.h>
+
+#include "linnet/core/pose.h"
+
+namespace linnet {
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+class PoseWrappedFactor : public ceres::CostFunction {
+ public:
+  /// The wrapped factor takes inner's blocks followed by the extra block (`extra_size` doubles; a pose block on
+  /// PoseManifold when `extra_is_pose`, else Euclidean).
+  PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, int extra_size,
+                    bool extra_is_pose);
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const final;
+
+  const ceres::CostFunction& inner() const { return *inner_; }
+
+ protected:
+  /// The pose handed to the inner factor for the k-th pose block, and the maps from the body's tangent (6 x 6) and
+  /// the extra block's tangent (6 x tangent size) to its tangent.
+  virtual Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
+                         Eigen::MatrixXd* d_extra) const = 0;
+
+ private:
+  std::shared_ptr<ceres::CostFunction> inner_;
+  std::vector<int> pose_blocks_;
+  int extra_tangent_;
+  bool extra_is_pose_;
+};
+
+class RigCorrectedFactor final : public PoseWrappedFactor {
+ public:
+  /// T_B_R0: the correction that inner's extrinsics already contain. Extra block: T_B_R (7, PoseManifold).
+  RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, const Pose& T_B_R0);
+
+ protected:
+  Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
+                 Eigen::MatrixXd* d_extra) const override;
+
+ private:
+  Pose D_;  // T_B_R0^-1
+};
+
+class TimeShiftedFactor final : public PoseWrappedFactor {
+ public:
+  /// v_W[k], w_B[k]: velocity (W, m/s) and angular rate (B, rad/s) at the k-th pose block's frame. Extra block: t_d
+  /// (1, seconds).
+  TimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, std::vector<Vec3> v_W,
+                    std::vector<Vec3> w_B);
+
+ protected:
+  Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
+                 Eigen::MatrixXd* d_extra) const override;
+
+ private:
+  std::vector<Vec3> v_W_, w_B_;
+};
+
+}  // namespace linnet

@@ -1,0 +1,106 @@
+// Online calibration in the window (factors/pose_wrappers.h): one correction T_B_R of the stereo rig's extrinsics,
+// common to both cameras, and the camera-to-IMU time offset t_d. Each is a block of the window like a frame block:
+// it enters each new window with a prior at its current value (sigmas in options_.extrinsics / time_offset) and is
+// never marginalised, so what the window learns about it stays in the marginalisation priors.
+#include <algorithm>
+
+#include "estimator_core.h"
+#include "linnet/estimator/factors/pose_wrappers.h"
+
+namespace linnet {
+
+Pose EstimatorCore::rigCorrection() const { return poseFromBlock(rig_.data()); }
+
+Vec3 EstimatorCore::gyroAt(Timestamp t) const {
+  const Timestamp t0 = t - fromSeconds(0.01);
+  if (!imu_.covers(t0, t)) return Vec3::Zero();
+  const std::vector<ImuSample> samples = imu_.samplesBetween(t0, t);
+  Vec3 sum = Vec3::Zero();
+  for (const ImuSample& s : samples) sum += s.gyr;
+  return sum / static_cast<double>(samples.size());
+}
+
+void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
+  const bool rig = options_.extrinsics.estimate, time = options_.time_offset.estimate;
+  if (!rig && !time) return;
+  for (ResidualSpec& r : *residuals) {
+    std::vector<int> poses;  // visual residuals: their frame keys are pose blocks
+    for (std::size_t b = 0; b < r.keys.size(); ++b)
+      if (r.keys[b] >= 0 && r.keys[b] % 4 == static_cast<int>(BlockKind::kPose)) poses.push_back(static_cast<int>(b));
+    if (poses.empty()) continue;  // the same-frame stereo residual depends on neither
+    // The rig correction applies to the time-shifted body pose, so it is the inner wrapper.
+    if (rig) {
+      r.cost = std::make_shared<RigCorrectedFactor>(r.cost, poses, rig_applied_);
+      r.blocks.push_back(rig_.data());
+      r.keys.push_back(kRigBlockKey);
+    }
+    if (time) {
+      std::vector<Vec3> v, w;
+      for (int b : poses) {
+        const WindowFrame* f = window_.find(r.keys[static_cast<std::size_t>(b)] / 4);
+        v.push_back(f->v());
+        w.push_back(f->gyr - f->bg());
+      }
+      r.cost = std::make_shared<TimeShiftedFactor>(r.cost, poses, std::move(v), std::move(w));
+      r.blocks.push_back(time_offset_.data());
+      r.keys.push_back(kTimeOffsetBlockKey);
+    }
+  }
+}
+
+void EstimatorCore::applyRig() {
+  if (!options_.extrinsics.estimate) return;
+  rig_applied_ = rigCorrection();
+  std::optional<Pose> c1;
+  if (T_B_C1_.has_value()) c1 = rig_applied_ * *T_B_C1_;
+  points_.setExtrinsics(rig_applied_ * T_B_C0_, c1);
+  lines_.setExtrinsics(rig_applied_ * T_B_C0_, c1);
+}
+
+void EstimatorCore::addCalibrationPriors() {
+  if (options_.extrinsics.estimate) {
+    const ExtrinsicsOptions& o = options_.extrinsics;
+    auto p = std::make_shared<MarginalizationPrior>();
+    p->keys = {kRigBlockKey};
+    p->ambient_sizes = {kPoseAmbientSize};
+    p->tangent_sizes = {kPoseTangentSize};
+    p->tangent_offsets = {0};
+    p->x0 = {std::vector<double>(rig_.begin(), rig_.end())};
+    p->manifolds = {&pose_manifold_};
+    p->J = Eigen::MatrixXd::Zero(6, 6);
+    p->J.topLeftCorner<3, 3>() = Mat3::Identity() / o.prior_translation_m;
+    p->J.bottomRightCorner<3, 3>() = Mat3::Identity() / (o.prior_rotation_deg * M_PI / 180.0);
+    p->r = Eigen::VectorXd::Zero(6);
+    priors_.push_back(p);
+  }
+  if (options_.time_offset.estimate) {
+    auto p = std::make_shared<MarginalizationPrior>();
+    p->keys = {kTimeOffsetBlockKey};
+    p->ambient_sizes = {1};
+    p->tangent_sizes = {1};
+    p->tangent_offsets = {0};
+    p->x0 = {std::vector<double>{time_offset_[0]}};
+    p->manifolds = {nullptr};
+    p->J = Eigen::MatrixXd::Constant(1, 1, 1.0 / (1e-3 * options_.time_offset.prior_ms));
+    p->r = Eigen::VectorXd::Zero(1);
+    priors_.push_back(p);
+  }
+}
+
+double* EstimatorCore::blockOf(BlockKey key) {
+  if (key == kRigBlockKey) return rig_.data();
+  if (key == kTimeOffsetBlockKey) return time_offset_.data();
+  return window_.block(key);
+}
+
+int EstimatorCore::ambientSizeOf(BlockKey key) const {
+  if (key == kRigBlockKey) return kPoseAmbientSize;
+  if (key == kTimeOffsetBlockKey) return 1;
+  return key % 4 == static_cast<int>(BlockKind::kPose) ? kPoseAmbientSize : kSpeedBiasSize;
+}
+
+const ceres::Manifold* EstimatorCore::manifoldOf(BlockKey key) const {
+  return ambientSizeOf(key) == kPoseAmbientSize ? &pose_manifold_ : nullptr;
+}
+
+}  // namespace linnet
