@@ -81,14 +81,14 @@ int main(int argc, char** argv) {
                 "real-time factor wall %.3f CPU %.3f\n",
                 r.frames, r.frames_with_pose, r.init_time_s, r.reinitialisations, r.wall_time_s, r.cpu_time_s,
                 r.image_load_cpu_s, r.real_time_factor, r.cpu_real_time_factor);
-    if (cfg.estimator.extrinsics.estimate) {
+    if (r.extrinsics_estimated) {
       const linnet::Pose& c = r.extrinsics_correction;
       const linnet::Vec3 w = linnet::logSO3(c.q) * (180.0 / M_PI);
       std::printf("camera-IMU extrinsics refined online (T_B_R, cameras at T_B_R * T_B_Ci): rotation %.3f deg "
                   "[%.3f %.3f %.3f], translation %.2f mm [%.2f %.2f %.2f]\n",
                   w.norm(), w.x(), w.y(), w.z(), 1e3 * c.p.norm(), 1e3 * c.p.x(), 1e3 * c.p.y(), 1e3 * c.p.z());
     }
-    if (cfg.estimator.time_offset.estimate)
+    if (r.time_offset_estimated)
       std::printf("camera-to-IMU time offset estimated online: %.3f ms (camera stamp - capture time)\n",
                   1e3 * r.time_offset_s);
     if (!out.empty()) linnet::writeRunOutputs(r, out);

@@ -122,6 +122,17 @@ def run_dataset(dataset: PathLike, config: Optional[_linnet.Config] = None, *, m
     return result
 
 
+def extrinsics_correction(T_B_R) -> dict:
+    """The online rig correction as summary.json gives it: the 4x4 T_B_R (the cameras are at T_B_R @ T_B_Ci, with
+    T_B_Ci the calibration's) and its rotation angle and translation length."""
+    import numpy as np
+
+    T = np.asarray(T_B_R, dtype=float)
+    cos = float(np.clip((np.trace(T[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))
+    return {"T_B_R": T.tolist(), "rotation_deg": float(np.degrees(np.arccos(cos))),
+            "translation_m": float(np.linalg.norm(T[:3, 3]))}
+
+
 def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
     """summary.json contents: counts, timings, the run's warnings, its status ("ok" or "failed", with the reasons in
     "problems", see diagnose), and the APE (SE3 alignment, position) when the dataset has ground truth."""
@@ -146,6 +157,10 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
         "image_load_cpu_s": run.image_load_cpu_s,
         "imu_samples": run.imu_samples,
     }
+    if run.time_offset_estimated:
+        summary["time_offset_ms"] = 1e3 * run.time_offset_s
+    if run.extrinsics_estimated:
+        summary["extrinsics_correction"] = extrinsics_correction(run.extrinsics_correction)
     gt = find_ground_truth(dataset) if dataset is not None else None
     traj = run.trajectory(True)
     if gt is not None and len(traj["t_ns"]) >= 3:

@@ -1,5 +1,6 @@
 #include "linnet/estimator/factors/pose_wrappers.h"
 
+#include <algorithm>
 #include <array>
 
 #include "linnet/core/error.h"
@@ -8,7 +9,20 @@
 namespace linnet {
 
 namespace {
-using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+// Visual residuals have at most 2 pose blocks, 4 rows and (nested wrappers included) a handful of blocks: fixed
+// capacities keep Evaluate free of heap allocation.
+constexpr int kMaxPoses = 2;
+constexpr int kMaxRows = 4;
+constexpr int kMaxBlocks = 8;
+using AmbientJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseAmbientSize, Eigen::RowMajor, kMaxRows, kPoseAmbientSize>;
+using TangentJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseTangentSize, Eigen::RowMajor, kMaxRows, kPoseTangentSize>;
+
+/// Writes the ambient (rows x 7, row-major) Jacobian of a pose block from its tangent one (as tangentToAmbientPose).
+void poseTangentToAmbient(const TangentJ& J_t, const double* pose, double* out) {
+  Eigen::Map<AmbientJ> J(out, J_t.rows(), kPoseAmbientSize);
+  J.leftCols(3) = J_t.leftCols(3);
+  J.rightCols(4) = 4.0 * J_t.rightCols(3) * quatPlusJacobian(poseRotation(pose)).transpose();
+}
 }  // namespace
 
 PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
@@ -18,6 +32,9 @@ PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner,
       extra_tangent_(extra_is_pose ? kPoseTangentSize : extra_size),
       extra_is_pose_(extra_is_pose) {
   if (extra_is_pose && extra_size != kPoseAmbientSize) throw UsageError("PoseWrappedFactor: a pose block has 7 values");
+  if (static_cast<int>(pose_blocks_.size()) > kMaxPoses || inner_->num_residuals() > kMaxRows ||
+      static_cast<int>(inner_->parameter_block_sizes().size()) >= kMaxBlocks || extra_tangent_ > kPoseTangentSize)
+    throw UsageError("PoseWrappedFactor: a visual residual has at most 2 poses, 4 rows and 7 blocks");
   set_num_residuals(inner_->num_residuals());
   std::vector<int32_t>* sizes = mutable_parameter_block_sizes();
   *sizes = inner_->parameter_block_sizes();
@@ -31,11 +48,13 @@ bool PoseWrappedFactor::Evaluate(double const* const* parameters, double* residu
   const std::size_t n_poses = pose_blocks_.size();
 
   // Inner parameters with the body poses replaced by the transformed poses.
-  std::vector<std::array<double, kPoseAmbientSize>> moved(n_poses);
-  std::vector<Mat6> d_body(n_poses);
-  std::vector<Eigen::MatrixXd> d_extra(n_poses);
-  std::vector<const double*> inner_params(parameters, parameters + n_inner);
+  std::array<std::array<double, kPoseAmbientSize>, kMaxPoses> moved;
+  std::array<Mat6, kMaxPoses> d_body;
+  std::array<ExtraMap, kMaxPoses> d_extra;
+  std::array<const double*, kMaxBlocks> inner_params{};
+  std::copy(parameters, parameters + n_inner, inner_params.begin());
   for (std::size_t k = 0; k < n_poses; ++k) {
+    d_extra[k].resize(6, extra_tangent_);
     const Pose T = transform(k, poseFromBlock(parameters[pose_blocks_[k]]), extra, &d_body[k], &d_extra[k]);
     setPose(T, moved[k].data());
     inner_params[static_cast<std::size_t>(pose_blocks_[k])] = moved[k].data();
@@ -44,33 +63,34 @@ bool PoseWrappedFactor::Evaluate(double const* const* parameters, double* residu
 
   const bool want_extra = jacobians[n_inner] != nullptr;
   // Inner Jacobians: straight into the output for the other blocks, into scratch for the poses.
-  std::vector<RowMat> pose_scratch(n_poses, RowMat(rows, kPoseAmbientSize));
-  std::vector<double*> inner_jac(jacobians, jacobians + n_inner);
+  std::array<AmbientJ, kMaxPoses> scratch;
+  std::array<double*, kMaxBlocks> inner_jac{};
+  std::copy(jacobians, jacobians + n_inner, inner_jac.begin());
   for (std::size_t k = 0; k < n_poses; ++k) {
     const auto b = static_cast<std::size_t>(pose_blocks_[k]);
-    if (jacobians[b] != nullptr || want_extra) inner_jac[b] = pose_scratch[k].data();
+    scratch[k].resize(rows, kPoseAmbientSize);
+    if (jacobians[b] != nullptr || want_extra) inner_jac[b] = scratch[k].data();
   }
   if (!inner_->Evaluate(inner_params.data(), residuals, inner_jac.data())) return false;
 
-  Eigen::MatrixXd J_extra = Eigen::MatrixXd::Zero(rows, extra_tangent_);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor, kMaxRows, 6> J_extra =
+      Eigen::MatrixXd::Zero(rows, extra_tangent_);
   for (std::size_t k = 0; k < n_poses; ++k) {
     const int b = pose_blocks_[k];
     if (jacobians[b] == nullptr && !want_extra) continue;
     // Tangent Jacobian w.r.t. the transformed pose: ambient times PoseManifold's PlusJacobian there.
-    Eigen::MatrixXd J_t(rows, kPoseTangentSize);
-    J_t.leftCols(3) = pose_scratch[k].leftCols(3);
-    J_t.rightCols(3) = pose_scratch[k].rightCols(4) * quatPlusJacobian(poseRotation(moved[k].data()));
-    if (jacobians[b] != nullptr) {
-      const Eigen::MatrixXd J_body = J_t * d_body[k];
-      tangentToAmbientPose<Eigen::Dynamic>(J_body, parameters[b], jacobians[b]);
-    }
+    TangentJ J_t(rows, kPoseTangentSize);
+    J_t.leftCols(3) = scratch[k].leftCols(3);
+    J_t.rightCols(3) = scratch[k].rightCols(4) * quatPlusJacobian(poseRotation(moved[k].data()));
+    if (jacobians[b] != nullptr) poseTangentToAmbient(J_t * d_body[k], parameters[b], jacobians[b]);
     if (want_extra) J_extra += J_t * d_extra[k];
   }
   if (want_extra) {
     if (extra_is_pose_) {
-      tangentToAmbientPose<Eigen::Dynamic>(J_extra, extra, jacobians[n_inner]);
+      poseTangentToAmbient(J_extra, extra, jacobians[n_inner]);
     } else {
-      Eigen::Map<RowMat>(jacobians[n_inner], rows, extra_tangent_) = J_extra;
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobians[n_inner], rows,
+                                                                                          extra_tangent_) = J_extra;
     }
   }
   return true;
@@ -81,7 +101,7 @@ RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inne
     : PoseWrappedFactor(std::move(inner), std::move(pose_blocks), kPoseAmbientSize, true), D_(T_B_R0.inverse()) {}
 
 Pose RigCorrectedFactor::transform(std::size_t /*k*/, const Pose& body, const double* extra, Mat6* d_body,
-                                   Eigen::MatrixXd* d_extra) const {
+                                   ExtraMap* d_extra) const {
   const Pose T_B_R = poseFromBlock(extra);
   const Pose M = T_B_R * D_;
   const Mat3 R_B = body.R();
@@ -102,7 +122,7 @@ TimeShiftedFactor::TimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner,
       w_B_(std::move(w_B)) {}
 
 Pose TimeShiftedFactor::transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
-                                  Eigen::MatrixXd* d_extra) const {
+                                  ExtraMap* d_extra) const {
   const double td = extra[0];
   const Quat E = expSO3(-td * w_B_[k]);
   d_body->setIdentity();

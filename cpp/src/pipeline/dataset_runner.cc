@@ -125,6 +125,8 @@ StreamRun::StreamRun(const Config& config, double realtime_speed)
   if (realtime_speed_ > 0.0) config_.pipeline.blocking = false;
   system_ = std::make_unique<System>(config_);
   summary_.stereo = config_.stereo;
+  summary_.extrinsics_estimated = config_.estimator.extrinsics.estimate;
+  summary_.time_offset_estimated = config_.estimator.time_offset.estimate;
 }
 
 StreamRun::~StreamRun() = default;

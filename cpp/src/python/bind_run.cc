@@ -1,6 +1,7 @@
 // Bindings of whole runs: a EuRoC folder (run_euroc), any other source fed sample by sample (StreamRun), and the
 // RunSummary both return.
 #include <pybind11/functional.h>
+#include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -38,6 +39,12 @@ void bindRun(py::module_& m) {
       .def_readonly("imu_samples", &RunSummary::imu_samples)
       .def_readonly("stereo", &RunSummary::stereo)
       .def_readonly("warnings", &RunSummary::warnings)
+      .def_readonly("extrinsics_estimated", &RunSummary::extrinsics_estimated)
+      .def_property_readonly(
+          "extrinsics_correction", [](const RunSummary& r) { return Eigen::Matrix4d(r.extrinsics_correction.matrix()); },
+          "online correction T_B_R of the rig's extrinsics (4x4; cameras at T_B_R @ T_B_Ci)")
+      .def_readonly("time_offset_estimated", &RunSummary::time_offset_estimated)
+      .def_readonly("time_offset_s", &RunSummary::time_offset_s)
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },

@@ -27,7 +27,9 @@ inline ImuNoise syntheticNoise() { return ImuNoise(); }
 /// `edit` may change a frame before it is given to the estimator (failure injection).
 template <class Edit>
 RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options, bool stereo, Edit edit) {
-  Estimator est(options, syntheticNoise(), eurocTBC0(), stereo ? std::optional<Pose>(eurocTBC1()) : std::nullopt);
+  const Pose& E = sim.options().calibration_error;
+  Estimator est(options, syntheticNoise(), E * eurocTBC0(),
+                stereo ? std::optional<Pose>(E * eurocTBC1()) : std::nullopt);
   RunResult r;
   std::size_t next_imu = 0;
   const auto& imu = sim.imu();

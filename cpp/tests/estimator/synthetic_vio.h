@@ -46,6 +46,8 @@ struct SyntheticOptions {
   double focal = 458.0;           // pixels
   bool stereo = true;
   std::uint64_t seed = 7;
+  double camera_time_offset_s = 0.0;  // frame stamps are the capture time plus this (camera-to-IMU offset), s
+  Pose calibration_error;             // the extrinsics handed to the estimator are calibration_error * T_B_Ci
 };
 
 /// Ground truth of one instant.
@@ -85,12 +87,14 @@ class SyntheticVio {
       }
       imu_.push_back(m);
     }
+    // Frames are captured at t; their stamps carry the camera time offset.
     for (Timestamp t = fromSeconds(o_.imu_lead_s); t <= t_end; t += 50'000'000) frames_.push_back(observe(t));
   }
 
   const std::vector<ImuSample>& imu() const { return imu_; }
   const std::vector<FrameObservations>& frames() const { return frames_; }
   const std::vector<Vec3>& points() const { return points_; }
+  const SyntheticOptions& options() const { return o_; }
 
   /// Analytic ground truth at time t (ns).
   TruthState truth(Timestamp t) const {
@@ -141,7 +145,7 @@ class SyntheticVio {
 
   FrameObservations observe(Timestamp t) {
     FrameObservations obs;
-    obs.t = t;
+    obs.t = t + fromSeconds(o_.camera_time_offset_s);
     obs.stereo = o_.stereo;
     const Pose T_W_B = truth(t).T_W_B;
     const Pose T_C0_W = (T_W_B * eurocTBC0()).inverse(), T_C1_W = (T_W_B * eurocTBC1()).inverse();

@@ -178,6 +178,12 @@ def _print_summary(summary: dict, out: Path) -> None:
         rows.append(("APE RMSE (SE3, position)", f"{ape['rmse_m']:.4f} m over {ape['pairs']} poses"))
         rows.append(("path length (estimate / gt)",
                      f"{summary['path_length_m']:.3f} m / {summary['gt_path_length_m']:.3f} m"))
+    if "time_offset_ms" in summary:
+        rows.append(("camera-to-IMU time offset (online)", f"{summary['time_offset_ms']:.2f} ms"))
+    if "extrinsics_correction" in summary:
+        c = summary["extrinsics_correction"]
+        rows.append(("extrinsics correction (online)",
+                     f"{c['rotation_deg']:.3f} deg, {1e3 * c['translation_m']:.2f} mm"))
     rows.append(("status", summary["status"]))
     for k, v in rows:
         table.add_row(k, v)

@@ -41,8 +41,10 @@ struct RunSummary {
   Timestamp first_imu_t = 0, last_imu_t = 0;      // of the first / last IMU sample handed over (ns; 0: none)
   int imu_samples = 0;
   bool stereo = true;                     // the run used cam0 + cam1 (false: monocular)
-  Pose extrinsics_correction;             // the last pose's online rig correction T_B_R (estimator.extrinsics)
-  double time_offset_s = 0.0;             // the last pose's camera-to-IMU time offset (estimator.time_offset), s
+  bool extrinsics_estimated = false;      // estimator.extrinsics.estimate
+  Pose extrinsics_correction;             // the last pose's online rig correction T_B_R (cameras at T_B_R * T_B_Ci)
+  bool time_offset_estimated = false;     // estimator.time_offset.estimate
+  double time_offset_s = 0.0;             // the last pose's camera-to-IMU time offset (camera stamp - capture), s
   std::vector<std::string> warnings;      // accepted but worth knowing (the dataset's, and the runner's)
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;

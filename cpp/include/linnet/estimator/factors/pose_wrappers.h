@@ -34,6 +34,7 @@
 namespace linnet {
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
+using ExtraMap = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;  // extra tangent -> transformed pose tangent
 
 class PoseWrappedFactor : public ceres::CostFunction {
  public:
@@ -50,7 +51,7 @@ class PoseWrappedFactor : public ceres::CostFunction {
   /// The pose handed to the inner factor for the k-th pose block, and the maps from the body's tangent (6 x 6) and
   /// the extra block's tangent (6 x tangent size) to its tangent.
   virtual Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
-                         Eigen::MatrixXd* d_extra) const = 0;
+                         ExtraMap* d_extra) const = 0;
 
  private:
   std::shared_ptr<ceres::CostFunction> inner_;
@@ -66,7 +67,7 @@ class RigCorrectedFactor final : public PoseWrappedFactor {
 
  protected:
   Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
-                 Eigen::MatrixXd* d_extra) const override;
+                 ExtraMap* d_extra) const override;
 
  private:
   Pose D_;  // T_B_R0^-1
@@ -81,7 +82,7 @@ class TimeShiftedFactor final : public PoseWrappedFactor {
 
  protected:
   Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
-                 Eigen::MatrixXd* d_extra) const override;
+                 ExtraMap* d_extra) const override;
 
  private:
   std::vector<Vec3> v_W_, w_B_;
