@@ -62,7 +62,9 @@ EstimatorCore::EstimatorCore(const EstimatorOptions& options, const ImuNoise& no
       points_(options.solver, T_B_C0, T_B_C1),
       lines_(options.lines, options.solver.focal_length, T_B_C0, T_B_C1),
       huber_(options.solver.huber_px),
-      line_huber_(options.lines.huber_px) {
+      line_loss_(options.lines.loss == "cauchy"
+                     ? static_cast<ceres::LossFunction*>(new ceres::CauchyLoss(options.lines.huber_px))
+                     : new ceres::HuberLoss(options.lines.huber_px)) {
   time_offset_[0] = 1e-3 * options.time_offset.initial_ms;
   preint_options_.gap_dt_s = options.imu_gap.gap_periods / noise.rate_hz;
   preint_options_.gap_acc_sigma = options.imu_gap.acc_sigma;
@@ -302,6 +304,21 @@ void EstimatorCore::decideKeyframe(WindowFrame& f, int tracked) {
   f.keyframe = keyframeDecision(options_.keyframe, in) != KeyframeReason::kNone;
 }
 
+bool EstimatorCore::detectRest(const WindowFrame& prev, const WindowFrame& f) const {
+  const ZeroVelocityOptions& o = options_.zero_velocity;
+  if (f.v().norm() > o.max_speed || prev.v().norm() > o.max_speed) return false;
+  const std::vector<std::pair<Vec2, Vec2>> pairs = points_.correspondences(prev.id, f.id);
+  if (static_cast<int>(pairs.size()) < o.min_points) return false;
+  std::vector<double> motion;
+  motion.reserve(pairs.size());
+  for (const auto& [a, b] : pairs) motion.push_back(options_.solver.focal_length * (b - a).norm());
+  std::nth_element(motion.begin(), motion.begin() + static_cast<std::ptrdiff_t>(motion.size() / 2), motion.end());
+  if (motion[motion.size() / 2] > o.max_motion_px) return false;
+  const Timestamp t0 = f.t - fromSeconds(o.window_s);
+  if (!imu_.covers(t0, f.t)) return false;
+  return isStatic(imu_.samplesBetween(t0, f.t), options_.init.at_rest, noise_.gravity);
+}
+
 bool EstimatorCore::failureAfterSolve(const NavState& predicted) const {
   const WindowFrame& f = window_.newest();
   const FailureOptions& o = options_.failure;
@@ -446,6 +463,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
     return finish(out);
   }
   decideKeyframe(f, tracked_points);
+  f.at_rest = options_.zero_velocity.enabled && detectRest(window_[window_.size() - 2], f);
   points_.triangulate(window_);
   {
     ScopedMs timer(&line_ms_);

@@ -67,6 +67,10 @@ class EstimatorCore {
   WindowFrame& pushPredicted(Timestamp t);
   NavState predictFrom(const WindowFrame& f, Timestamp t) const;
   void decideKeyframe(WindowFrame& f, int tracked);
+  /// Zero-velocity update test for the newest frame: both frames' estimated speeds below zero_velocity.max_speed,
+  /// the IMU at rest over zero_velocity.window_s and the points tracked from the previous frame still (median
+  /// motion below zero_velocity.max_motion_px).
+  bool detectRest(const WindowFrame& prev, const WindowFrame& f) const;
   bool failureAfterSolve(const NavState& predicted) const;
   void resetAfterFailure(const FrameObservations& obs, const NavState& state, EstimatorOutput* out);
   EstimatorOutput output(const WindowFrame& f) const;
@@ -74,6 +78,9 @@ class EstimatorCore {
   // --- estimator_solve.cc
   void repropagateIfNeeded();
   std::vector<ResidualSpec> imuResiduals(int first, int last);
+  /// Rest priors of the frames first..last detected at rest: zero velocity, and no motion from the window frame
+  /// before (when there is one).
+  std::vector<ResidualSpec> zeroVelocityResiduals(int first, int last);
   /// all_right: every cam1 residual (the initialisation's solve), else as solver.right_residuals_all_frames says.
   void solveWindow(int max_iterations, bool all_right = false);
   void solveWindowSchurLm(int max_iterations, bool all_right);
@@ -131,7 +138,7 @@ class EstimatorCore {
   PoseManifold pose_manifold_;
   LineManifold line_manifold_;
   ceres::HuberLoss huber_;
-  ceres::HuberLoss line_huber_;
+  std::unique_ptr<ceres::LossFunction> line_loss_;  // lines.loss at lines.huber_px
 
   // Per-frame timing of the line-only steps and of the solve, ms (reset by addFrame).
   double line_ms_ = 0.0;

@@ -7,6 +7,7 @@
 
 #include "estimator_core.h"
 #include "linnet/estimator/factors/imu_factor.h"
+#include "linnet/estimator/factors/zero_velocity_factor.h"
 #include "linnet/estimator/marginaliser.h"
 #include "linnet/estimator/schur_lm_solver.h"
 
@@ -32,6 +33,28 @@ std::vector<ResidualSpec> EstimatorCore::imuResiduals(int first, int last) {
     r.keys = {frameBlockKey(i.id, BlockKind::kPose), frameBlockKey(i.id, BlockKind::kSpeedBias),
               frameBlockKey(j.id, BlockKind::kPose), frameBlockKey(j.id, BlockKind::kSpeedBias)};
     out.push_back(std::move(r));
+  }
+  return out;
+}
+
+std::vector<ResidualSpec> EstimatorCore::zeroVelocityResiduals(int first, int last) {
+  std::vector<ResidualSpec> out;
+  for (int k = std::max(0, first); k <= last && k < window_.size(); ++k) {
+    WindowFrame& f = window_[k];
+    if (!f.at_rest) continue;
+    const ZeroVelocityOptions& o = options_.zero_velocity;
+    ResidualSpec r;
+    r.cost = std::make_shared<ZeroVelocityFactor>(o.velocity_sigma);
+    r.blocks = {f.speed_bias.data()};
+    r.keys = {frameBlockKey(f.id, BlockKind::kSpeedBias)};
+    out.push_back(std::move(r));
+    if (k == 0) continue;
+    WindowFrame& i = window_[k - 1];
+    ResidualSpec m;
+    m.cost = std::make_shared<NoMotionFactor>(o.position_sigma_m, o.rotation_sigma_deg * M_PI / 180.0);
+    m.blocks = {i.pose.data(), f.pose.data()};
+    m.keys = {frameBlockKey(i.id, BlockKind::kPose), frameBlockKey(f.id, BlockKind::kPose)};
+    out.push_back(std::move(m));
   }
   return out;
 }
@@ -73,6 +96,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
     keep.push_back(f);
   }
   std::vector<ResidualSpec> residuals = imuResiduals(1, window_.size() - 1);
+  for (ResidualSpec& r : zeroVelocityResiduals(0, window_.size() - 1)) residuals.push_back(std::move(r));
   std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right, frameWeights(false));
   {
     ScopedMs timer(&line_ms_);
@@ -124,7 +148,8 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     prior_factors.push_back(std::make_shared<PriorFactor>(prior));
     solver.addResidual(prior_factors.back().get(), nullptr, blocks);
   }
-  const std::vector<ResidualSpec> imu = imuResiduals(1, window_.size() - 1);
+  std::vector<ResidualSpec> imu = imuResiduals(1, window_.size() - 1);
+  for (ResidualSpec& r : zeroVelocityResiduals(0, window_.size() - 1)) imu.push_back(std::move(r));
   for (const ResidualSpec& r : imu) solver.addResidual(r.cost.get(), nullptr, r.blocks);
   std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right, frameWeights(false));
   {
@@ -156,7 +181,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
 
 ceres::LossFunction* EstimatorCore::lossOf(const ResidualSpec& r) {
   if (!r.robust) return nullptr;
-  return r.line ? static_cast<ceres::LossFunction*>(&line_huber_) : &huber_;
+  return r.line ? line_loss_.get() : &huber_;
 }
 
 std::map<FrameId, double> EstimatorCore::frameWeights(bool for_lines) const {
@@ -205,7 +230,12 @@ void EstimatorCore::marginaliseOldest() {
     for (BlockKey k : prior->keys) regFrameKey(k);
     m.addResidual(std::make_shared<PriorFactor>(prior), nullptr, prior->keys);
   }
-  for (const ResidualSpec& r : imuResiduals(1, 1)) {
+  std::vector<ResidualSpec> inertial = imuResiduals(1, 1);
+  for (ResidualSpec& r : zeroVelocityResiduals(0, 1)) {  // the rest priors that touch the oldest frame
+    if (std::find_first_of(r.keys.begin(), r.keys.end(), drop_frame.begin(), drop_frame.end()) != r.keys.end())
+      inertial.push_back(std::move(r));
+  }
+  for (const ResidualSpec& r : inertial) {
     for (BlockKey k : r.keys) regFrameKey(k);
     m.addResidual(r.cost, nullptr, r.keys);
   }

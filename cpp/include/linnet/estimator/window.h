@@ -28,6 +28,7 @@ struct WindowFrame {
   std::unique_ptr<Preintegration> preint;           // previous window frame -> this frame; null for the oldest
   bool keyframe = false;
   Vec3 gyr = Vec3::Zero();                          // measured angular rate at t (mean over the last 10 ms), rad/s
+  bool at_rest = false;                             // zero-velocity update detected at this frame
 
   Pose T_W_B() const;
   void setPose(const Pose& T);
