@@ -141,7 +141,7 @@ EstimatorOutput EstimatorCore::output(const WindowFrame& f) const {
   out.num_lines = lines_.countUsed();
   out.reinitialisations = reinitialisations_;
   out.T_B_R = rigCorrection();
-  out.time_offset_s = time_offset_[0];
+  out.time_offset_s = timeOffset();
   return out;
 }
 

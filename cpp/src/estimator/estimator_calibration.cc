@@ -21,7 +21,8 @@ Vec3 EstimatorCore::gyroAt(Timestamp t) const {
 }
 
 void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
-  const bool rig = options_.extrinsics.estimate, time = options_.time_offset.estimate;
+  // A held t_d is in the frames' capture_shift (setCaptureShifts), not a wrapper.
+  const bool rig = options_.extrinsics.estimate, time = options_.time_offset.estimate && !time_offset_held_;
   if (!rig && !time) return;
   for (ResidualSpec& r : *residuals) {
     std::vector<int> poses;  // visual residuals: their frame keys are pose blocks
@@ -45,6 +46,28 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
       r.blocks.push_back(time_offset_.data());
       r.keys.push_back(kTimeOffsetBlockKey);
     }
+  }
+}
+
+void EstimatorCore::updateTimeOffsetHold() {
+  const TimeOffsetOptions& o = options_.time_offset;
+  if (!o.estimate || time_offset_held_ || window_.empty()) return;
+  const Timestamp t = window_.newest().t;
+  if (time_offset_since_ < 0) time_offset_since_ = t;
+  if (o.estimate_for_s > 0.0 && toSeconds(t - time_offset_since_) > o.estimate_for_s) {
+    time_offset_held_ = true;
+    time_offset_held_value_ = time_offset_[0];
+  }
+}
+
+void EstimatorCore::setCaptureShifts() {
+  if (!time_offset_held_) return;
+  // The body at t - t_d to first order, as TimeShiftedFactor: (p - t_d v, R Exp(-t_d w)), written on the body side
+  // with the rotation at this linearisation: T_W_B * (Exp(-t_d w), R^T (-t_d v)).
+  const double td = time_offset_held_value_;
+  for (int k = 0; k < window_.size(); ++k) {
+    WindowFrame& f = window_[k];
+    f.capture_shift = Pose(expSO3(-td * (f.gyr - f.bg())), f.T_W_B().R().transpose() * (-td * f.v()));
   }
 }
 

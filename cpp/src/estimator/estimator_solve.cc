@@ -61,6 +61,8 @@ std::vector<ResidualSpec> EstimatorCore::zeroVelocityResiduals(int first, int la
 
 void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   repropagateIfNeeded();
+  updateTimeOffsetHold();
+  setCaptureShifts();
   if (options_.solver.engine == "schur_lm") {
     solveWindowSchurLm(max_iterations, all_right);
     return;
@@ -208,6 +210,7 @@ std::map<FrameId, double> EstimatorCore::frameWeights(bool for_lines) const {
 }
 
 void EstimatorCore::marginaliseOldest() {
+  setCaptureShifts();
   const WindowFrame& old = window_[0];
   const FrameId old_id = old.id;
   Marginaliser m;

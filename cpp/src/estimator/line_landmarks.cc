@@ -144,7 +144,7 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
       }
       auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C) {
         ResidualSpec r;
-        r.cost = std::make_shared<LineReprojectionFactor>(a, b, T_B_C, s);
+        r.cost = std::make_shared<LineReprojectionFactor>(a, b, f->capture_shift * T_B_C, s);
         r.robust = true;
         r.line = true;
         r.blocks = {f->pose.data(), lm.plucker.data()};

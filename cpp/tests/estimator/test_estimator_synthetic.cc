@@ -156,6 +156,15 @@ TEST(EstimatorSynthetic, OnlineCalibrationRecoversTimeOffsetAndExtrinsics) {
   EXPECT_NEAR(last.time_offset_s, 0.005, 0.0005);
   EXPECT_LT(rot_left.norm(), 0.4 * rot_err.norm() * 180.0 / M_PI);  // 0.09 of 0.29 deg left (the prior is 0.1 deg)
   EXPECT_LT(r.ape_rmse, 0.9 * trusted.ape_rmse);
+
+  // Held after 8 s (the frames' capture shift instead of the estimated block): the offset stops moving and the
+  // trajectory stays as good.
+  o.time_offset.estimate_for_s = 8.0;
+  const RunResult held = runEstimator(sim, o);
+  report("offset held after 8 s", held);
+  EXPECT_EQ(held.outputs.back().time_offset_s, held.outputs[held.outputs.size() - 100].time_offset_s);
+  EXPECT_NEAR(held.outputs.back().time_offset_s, 0.005, 0.0005);
+  EXPECT_LT(held.ape_rmse, 1.2 * r.ape_rmse);
 }
 
 TEST(EstimatorSynthetic, TwoRunsAreBitIdentical) {

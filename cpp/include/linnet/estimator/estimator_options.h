@@ -246,6 +246,9 @@ struct TimeOffsetOptions {
                             // 9 (README); mean APE over them 0.0376 -> 0.0368 m; +20% CPU in the window solve
   double initial_ms = 0.0;  // t_d to start from (and the prior's mean), ms
   double prior_ms = 5.0;    // prior sigma of t_d, ms
+  double estimate_for_s = 20.0;  // t_d is estimated over this much tracked time, then held (the residuals keep the
+                                 // shift, without the extra block's cost: about a fifth of the CPU of a run); 0:
+                                 // estimated all along. Hard replays: converged within 0.3 ms of 3 ms by then, s
 
   template <class V>
   void visit(V& v) {
@@ -253,6 +256,8 @@ struct TimeOffsetOptions {
     v("initial_ms", initial_ms, "camera-to-IMU time offset to start from (camera stamp - capture time), ms", -1000.0,
       1000.0);
     v("prior_ms", prior_ms, "prior sigma of the camera-to-IMU time offset, ms", 1e-6, 1000.0);
+    v("estimate_for_s", estimate_for_s, "tracked time over which the offset is estimated, then held (0: always), s",
+      0.0, 1e9);
   }
 };
 

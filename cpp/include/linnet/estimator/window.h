@@ -29,6 +29,8 @@ struct WindowFrame {
   bool keyframe = false;
   Vec3 gyr = Vec3::Zero();                          // measured angular rate at t (mean over the last 10 ms), rad/s
   bool at_rest = false;                             // zero-velocity update detected at this frame
+  Pose capture_shift;  // body at the capture time relative to the body at t (a held camera-to-IMU time offset;
+                       // identity otherwise): the frame's visual residuals use capture_shift * T_B_C
 
   Pose T_W_B() const;
   void setPose(const Pose& T);
