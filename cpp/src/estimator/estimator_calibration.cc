@@ -9,7 +9,7 @@
 
 namespace linnet {
 
-Pose EstimatorCore::rigCorrection() const { return poseFromBlock(rig_.data()); }
+Pose EstimatorCore::rigCorrection() const { return rig_held_ ? rig_applied_ : poseFromBlock(rig_.data()); }
 
 Vec3 EstimatorCore::gyroAt(Timestamp t) const {
   const Timestamp t0 = t - fromSeconds(0.01);
@@ -21,8 +21,9 @@ Vec3 EstimatorCore::gyroAt(Timestamp t) const {
 }
 
 void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
-  // A held t_d is in the frames' capture_shift (setCaptureShifts), not a wrapper.
-  const bool rig = options_.extrinsics.estimate, time = options_.time_offset.estimate && !time_offset_held_;
+  // A held t_d is in the frames' capture_shift (setCaptureShifts), a held correction in the landmarks' extrinsics.
+  const bool rig = options_.extrinsics.estimate && !rig_held_;
+  const bool time = options_.time_offset.estimate && !time_offset_held_;
   if (!rig && !time) return;
   for (ResidualSpec& r : *residuals) {
     std::vector<int> poses;  // visual residuals: their frame keys are pose blocks
@@ -49,15 +50,20 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
   }
 }
 
-void EstimatorCore::updateTimeOffsetHold() {
-  const TimeOffsetOptions& o = options_.time_offset;
-  if (!o.estimate || time_offset_held_ || window_.empty()) return;
+void EstimatorCore::updateCalibrationHolds() {
+  const bool td = options_.time_offset.estimate && !time_offset_held_;
+  const bool rig = options_.extrinsics.estimate && !rig_held_;
+  if ((!td && !rig) || window_.empty()) return;
   const Timestamp t = window_.newest().t;
-  if (time_offset_since_ < 0) time_offset_since_ = t;
-  if (o.estimate_for_s > 0.0 && toSeconds(t - time_offset_since_) > o.estimate_for_s) {
+  if (calibration_since_ < 0) calibration_since_ = t;
+  const double tracked_s = toSeconds(t - calibration_since_);
+  const double td_for = options_.time_offset.estimate_for_s, rig_for = options_.extrinsics.estimate_for_s;
+  if (td && td_for > 0.0 && tracked_s > td_for) {
     time_offset_held_ = true;
     time_offset_held_value_ = time_offset_[0];
   }
+  // The landmarks' extrinsics already hold the last solve's correction (applyRig); from now on they stay.
+  if (rig && rig_for > 0.0 && tracked_s > rig_for) rig_held_ = true;
 }
 
 void EstimatorCore::setCaptureShifts() {
@@ -72,7 +78,7 @@ void EstimatorCore::setCaptureShifts() {
 }
 
 void EstimatorCore::applyRig() {
-  if (!options_.extrinsics.estimate) return;
+  if (!options_.extrinsics.estimate || rig_held_) return;
   rig_applied_ = rigCorrection();
   std::optional<Pose> c1;
   if (T_B_C1_.has_value()) c1 = rig_applied_ * *T_B_C1_;

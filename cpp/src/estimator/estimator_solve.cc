@@ -61,7 +61,7 @@ std::vector<ResidualSpec> EstimatorCore::zeroVelocityResiduals(int first, int la
 
 void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   repropagateIfNeeded();
-  updateTimeOffsetHold();
+  updateCalibrationHolds();
   setCaptureShifts();
   if (options_.solver.engine == "schur_lm") {
     solveWindowSchurLm(max_iterations, all_right);
