@@ -54,9 +54,12 @@ void EstimatorCore::updateCalibrationHolds() {
   const bool td = options_.time_offset.estimate && !time_offset_held_;
   const bool rig = options_.extrinsics.estimate && !rig_held_;
   if ((!td && !rig) || window_.empty()) return;
-  const Timestamp t = window_.newest().t;
-  if (calibration_since_ < 0) calibration_since_ = t;
-  const double tracked_s = toSeconds(t - calibration_since_);
+  // Only time in motion counts: at rest neither the offset nor the extrinsics are observable.
+  const WindowFrame& newest = window_.newest();
+  if (calibration_last_t_ >= 0 && newest.t > calibration_last_t_ && !newest.at_rest)
+    calibration_moving_s_ += toSeconds(newest.t - calibration_last_t_);
+  calibration_last_t_ = newest.t;
+  const double tracked_s = calibration_moving_s_;
   const double td_for = options_.time_offset.estimate_for_s, rig_for = options_.extrinsics.estimate_for_s;
   if (td && td_for > 0.0 && tracked_s > td_for) {
     time_offset_held_ = true;

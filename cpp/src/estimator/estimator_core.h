@@ -107,8 +107,8 @@ class EstimatorCore {
   /// Wraps the visual residuals that involve body poses in RigCorrectedFactor and TimeShiftedFactor (each when
   /// estimated).
   void correctCalibration(std::vector<ResidualSpec>* residuals);
-  /// Holds t_d and the rig correction once their estimate_for_s of tracked time has passed (called before each
-  /// window solve).
+  /// Holds t_d and the rig correction once their estimate_for_s of tracked time in motion has passed (called
+  /// before each window solve).
   void updateCalibrationHolds();
   /// Sets every window frame's capture_shift for the held t_d (identity while t_d is estimated or not used): a
   /// held offset costs nothing in the solve, unlike the TimeShiftedFactor wrapper.
@@ -133,7 +133,8 @@ class EstimatorCore {
   std::array<double, 7> rig_{0, 0, 0, 0, 0, 0, 1};  // rig correction T_B_R block (PoseManifold), see pose_wrappers.h
   Pose rig_applied_;               // the correction the landmarks' extrinsics contain
   std::array<double, 1> time_offset_{0.0};  // camera-to-IMU time offset t_d, s
-  Timestamp calibration_since_ = -1;        // first frame solved with online calibration
+  Timestamp calibration_last_t_ = -1;       // newest frame of the last solve with online calibration
+  double calibration_moving_s_ = 0.0;       // tracked time in motion (frames not at rest) since then, s
   bool rig_held_ = false;                   // extrinsics.estimate_for_s has passed: the correction is rig_applied_
   bool time_offset_held_ = false;           // estimate_for_s has passed: t_d is held at time_offset_held_value_
   double time_offset_held_value_ = 0.0;

@@ -229,10 +229,10 @@ struct ExtrinsicsOptions {
                                       // APE 4.9 vs 3.3 mm; 9 hard replays: mean 0.0355 vs 0.0353 m)
   double prior_translation_m = 0.002; // prior sigma of the translation correction (per axis), m (weakly observable:
                                       // 0.5-10 mm gave the same synthetic APE)
-  double estimate_for_s = 0.0;        // > 0: the correction is estimated over this much tracked time, then held in the
-                                      // cameras' extrinsics (no cost after that); 0: estimated all along, s. Held
-                                      // after 20 s it had not converged: 9 hard replays mean 0.0362 m (all along
-                                      // 0.0353), real-IMU replay 0.018 m (a spurious 0.14 deg)
+  double estimate_for_s = 0.0;        // > 0: the correction is estimated over this much tracked time in motion, then
+                                      // held in the cameras' extrinsics (no cost after that); 0: estimated all along,
+                                      // s. Held after 20 s of tracking it had not converged: 9 hard replays mean
+                                      // 0.0362 m (all along 0.0353), real-IMU replay 0.018 m (a spurious 0.14 deg)
 
   template <class V>
   void visit(V& v) {
@@ -240,7 +240,7 @@ struct ExtrinsicsOptions {
     v("prior_rotation_deg", prior_rotation_deg, "prior sigma of the extrinsic rotation correction, deg", 1e-6, 30.0);
     v("prior_translation_m", prior_translation_m, "prior sigma of the extrinsic translation correction, m", 1e-9,
       1.0);
-    v("estimate_for_s", estimate_for_s, "tracked time over which the extrinsics are refined, then held (0: always), s",
+    v("estimate_for_s", estimate_for_s, "tracked time in motion over which the extrinsics are refined, then held (0: always), s",
       0.0, 1e9);
   }
 };
@@ -252,7 +252,7 @@ struct TimeOffsetOptions {
                             // 9 (README); mean APE over them 0.0376 -> 0.0368 m; +20% CPU in the window solve
   double initial_ms = 0.0;  // t_d to start from (and the prior's mean), ms
   double prior_ms = 5.0;    // prior sigma of t_d, ms
-  double estimate_for_s = 20.0;  // t_d is estimated over this much tracked time, then held (the residuals keep the
+  double estimate_for_s = 20.0;  // t_d is estimated over this much tracked time in motion, then held (the residuals keep the
                                  // shift, without the extra block's cost: about a fifth of the CPU of a run); 0:
                                  // estimated all along. Hard replays: converged within 0.3 ms of 3 ms by then, s
 
@@ -262,7 +262,7 @@ struct TimeOffsetOptions {
     v("initial_ms", initial_ms, "camera-to-IMU time offset to start from (camera stamp - capture time), ms", -1000.0,
       1000.0);
     v("prior_ms", prior_ms, "prior sigma of the camera-to-IMU time offset, ms", 1e-6, 1000.0);
-    v("estimate_for_s", estimate_for_s, "tracked time over which the offset is estimated, then held (0: always), s",
+    v("estimate_for_s", estimate_for_s, "tracked time in motion over which the offset is estimated, then held (0: always), s",
       0.0, 1e9);
   }
 };
