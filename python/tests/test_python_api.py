@@ -40,8 +40,8 @@ def test_system_rejects_bad_input():
 def test_system_runs_on_arrays_and_calls_back():
     cfg = linnet.Config.euroc_stereo_imu()
     system = linnet.System(cfg)
-    seen = []
-    system.set_callback(lambda r: seen.append(r.t_ns))
+    seen, calibration = [], []
+    system.set_callback(lambda r: (seen.append(r.t_ns), calibration.append((r.time_offset_s, r.extrinsics_correction))))
     rng = np.random.default_rng(0)
     image = (rng.random((480, 752)) * 255).astype(np.uint8)
     t = 0
@@ -55,5 +55,8 @@ def test_system_runs_on_arrays_and_calls_back():
         system.add_imu(t, np.array([0.0, 0.0, 9.81]), np.zeros(3))
     system.finish()
     assert len(seen) == 10
+    # Online calibration as each frame reports it: the offset starts at estimator.time_offset.initial_ms (0), the
+    # extrinsics correction is the identity unless estimated.
+    assert all(td == 0.0 and np.array_equal(T, np.eye(4)) for td, T in calibration)
     traj = system.trajectory(only_with_pose=False)
     assert traj["t_ns"].shape == (10,)

@@ -149,7 +149,14 @@ void bindSystem(py::module_& m) {
       .def_readonly("line_backend_ms", &FrameResult::line_backend_ms)
       .def_readonly("solver_ms", &FrameResult::solver_ms)
       .def_property_readonly("landmark_points", [](const FrameResult& r) { return r.estimate.num_points; })
-      .def_property_readonly("landmark_lines", [](const FrameResult& r) { return r.estimate.num_lines; });
+      .def_property_readonly("landmark_lines", [](const FrameResult& r) { return r.estimate.num_lines; })
+      .def_property_readonly(
+          "time_offset_s", [](const FrameResult& r) { return r.estimate.time_offset_s; },
+          "camera-to-IMU time offset in use (camera stamp - capture time), s (estimator.time_offset)")
+      .def_property_readonly(
+          "extrinsics_correction", [](const FrameResult& r) { return Eigen::Matrix4d(r.estimate.T_B_R.matrix()); },
+          "online correction T_B_R of the rig's extrinsics (4x4; cameras at T_B_R @ T_B_Ci; identity unless "
+          "estimator.extrinsics.estimate)");
 
   py::class_<PySystem>(m, "System",
                        "Stereo/mono + IMU SLAM system: add_imu / add_stereo / add_mono in time order, then finish()")
