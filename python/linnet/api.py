@@ -127,9 +127,10 @@ def extrinsics_correction(T_B_R) -> dict:
     T_B_Ci the calibration's) and its rotation angle and translation length."""
     import numpy as np
 
+    from linnet.sim.rotations import log_so3
+
     T = np.asarray(T_B_R, dtype=float)
-    cos = float(np.clip((np.trace(T[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))
-    return {"T_B_R": T.tolist(), "rotation_deg": float(np.degrees(np.arccos(cos))),
+    return {"T_B_R": T.tolist(), "rotation_deg": float(np.degrees(np.linalg.norm(log_so3(T[:3, :3])))),
             "translation_m": float(np.linalg.norm(T[:3, 3]))}
 
 

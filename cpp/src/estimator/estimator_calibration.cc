@@ -89,33 +89,35 @@ void EstimatorCore::applyRig() {
   lines_.setExtrinsics(rig_applied_ * T_B_C0_, c1);
 }
 
+namespace {
+/// A prior on one block at its current value `x` (ambient values), with square-root information `sqrt_info`
+/// (tangent x tangent).
+std::shared_ptr<const MarginalizationPrior> blockPrior(BlockKey key, const double* x, int ambient,
+                                                       const ceres::Manifold* manifold, const Eigen::MatrixXd& sqrt_info) {
+  auto p = std::make_shared<MarginalizationPrior>();
+  p->keys = {key};
+  p->ambient_sizes = {ambient};
+  p->tangent_sizes = {static_cast<int>(sqrt_info.cols())};
+  p->tangent_offsets = {0};
+  p->x0 = {std::vector<double>(x, x + ambient)};
+  p->manifolds = {manifold};
+  p->J = sqrt_info;
+  p->r = Eigen::VectorXd::Zero(sqrt_info.rows());
+  return p;
+}
+}  // namespace
+
 void EstimatorCore::addCalibrationPriors() {
   if (options_.extrinsics.estimate) {
     const ExtrinsicsOptions& o = options_.extrinsics;
-    auto p = std::make_shared<MarginalizationPrior>();
-    p->keys = {kRigBlockKey};
-    p->ambient_sizes = {kPoseAmbientSize};
-    p->tangent_sizes = {kPoseTangentSize};
-    p->tangent_offsets = {0};
-    p->x0 = {std::vector<double>(rig_.begin(), rig_.end())};
-    p->manifolds = {&pose_manifold_};
-    p->J = Eigen::MatrixXd::Zero(6, 6);
-    p->J.topLeftCorner<3, 3>() = Mat3::Identity() / o.prior_translation_m;
-    p->J.bottomRightCorner<3, 3>() = Mat3::Identity() / (o.prior_rotation_deg * M_PI / 180.0);
-    p->r = Eigen::VectorXd::Zero(6);
-    priors_.push_back(p);
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(6, 6);
+    J.topLeftCorner<3, 3>() = Mat3::Identity() / o.prior_translation_m;
+    J.bottomRightCorner<3, 3>() = Mat3::Identity() / (o.prior_rotation_deg * M_PI / 180.0);
+    priors_.push_back(blockPrior(kRigBlockKey, rig_.data(), kPoseAmbientSize, &pose_manifold_, J));
   }
   if (options_.time_offset.estimate) {
-    auto p = std::make_shared<MarginalizationPrior>();
-    p->keys = {kTimeOffsetBlockKey};
-    p->ambient_sizes = {1};
-    p->tangent_sizes = {1};
-    p->tangent_offsets = {0};
-    p->x0 = {std::vector<double>{time_offset_[0]}};
-    p->manifolds = {nullptr};
-    p->J = Eigen::MatrixXd::Constant(1, 1, 1.0 / (1e-3 * options_.time_offset.prior_ms));
-    p->r = Eigen::VectorXd::Zero(1);
-    priors_.push_back(p);
+    const Eigen::MatrixXd J = Eigen::MatrixXd::Constant(1, 1, 1.0 / (1e-3 * options_.time_offset.prior_ms));
+    priors_.push_back(blockPrior(kTimeOffsetBlockKey, time_offset_.data(), 1, nullptr, J));
   }
 }
 

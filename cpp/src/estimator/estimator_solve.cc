@@ -243,34 +243,29 @@ void EstimatorCore::marginaliseOldest() {
     m.addResidual(r.cost, nullptr, r.keys);
   }
   std::vector<BlockKey> drop = drop_frame;
-  std::vector<ResidualSpec> visual = points_.residuals(window_, old_id, false, frameWeights(false));
-  correctCalibration(&visual);
-  for (const ResidualSpec& r : visual) {
+  // A visual residual: its frame (and calibration) blocks are kept, its landmark is dropped with the frame.
+  auto addVisual = [&](const ResidualSpec& r) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
       if (r.keys[b] >= 0) {
         regFrameKey(r.keys[b]);
       } else if (registered.insert(r.keys[b]).second) {
-        m.addParameterBlock(r.keys[b], r.blocks[b], 1, nullptr);
+        if (r.line)
+          m.addParameterBlock(r.keys[b], r.blocks[b], kLineAmbientSize, &line_manifold_);
+        else
+          m.addParameterBlock(r.keys[b], r.blocks[b], 1, nullptr);
         drop.push_back(r.keys[b]);
       }
     }
-    m.addResidual(r.cost, r.robust ? &huber_ : nullptr, r.keys);
-  }
+    m.addResidual(r.cost, lossOf(r), r.keys);
+  };
+  std::vector<ResidualSpec> visual = points_.residuals(window_, old_id, false, frameWeights(false));
+  correctCalibration(&visual);
+  for (const ResidualSpec& r : visual) addVisual(r);
   if (options_.lines.marginalise) {
     ScopedMs timer(&line_ms_);
     std::vector<ResidualSpec> lines = lines_.residuals(window_, old_id, frameWeights(true));
     correctCalibration(&lines);
-    for (const ResidualSpec& r : lines) {
-      for (std::size_t b = 0; b < r.keys.size(); ++b) {
-        if (r.keys[b] >= 0) {
-          regFrameKey(r.keys[b]);
-        } else if (registered.insert(r.keys[b]).second) {
-          m.addParameterBlock(r.keys[b], r.blocks[b], kLineAmbientSize, &line_manifold_);
-          drop.push_back(r.keys[b]);
-        }
-      }
-      m.addResidual(r.cost, lossOf(r), r.keys);
-    }
+    for (const ResidualSpec& r : lines) addVisual(r);
   }
   // Frame blocks must be registered even if nothing else touches them (a lone oldest frame).
   for (BlockKey k : drop_frame) regFrameKey(k);
