@@ -2,6 +2,7 @@
 #include "linnet/features/edge_drawing.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -94,6 +95,7 @@ void EdgeDrawing::link() {
   int max_mag = 0;
   ridge_.resize(static_cast<std::size_t>(cols) + 8);
   std::uint8_t* ridge = ridge_.data();
+  std::fill_n(ridge + cols, 8, 0);  // the tail read by the word scan (a wider previous image may have set it)
   for (int y = 1; y < rows - 1; y += step) {
     const std::uint16_t* m = mag_.ptr<std::uint16_t>(y);
     const std::uint16_t* up = mag_.ptr<std::uint16_t>(y - 1);
@@ -107,12 +109,16 @@ void EdgeDrawing::link() {
       ridge[x] = static_cast<std::uint8_t>((g != 0) & (d[x] ? across_x : across_y));
     }
     ridge[0] = ridge[cols - 1] = 0;
+    // ridge[] holds 0 / 1 bytes, so each hit is the lowest set bit of its byte: walk the set bits of each 8-byte
+    // word in ascending order (the 8 bytes past the row are zero).
+    static_assert(std::endian::native == std::endian::little, "the word scan maps bit 8k to byte k");
     for (int x = 0; x < cols; x += 8) {
       std::uint64_t word;
       std::memcpy(&word, ridge + x, 8);
-      if (word == 0) continue;
-      for (int k = x; k < std::min(x + 8, cols); ++k) {
-        if (!ridge[k] || (step > 1 && k % step != 0)) continue;
+      while (word != 0) {
+        const int k = x + (std::countr_zero(word) >> 3);
+        word &= word - 1;
+        if (step > 1 && k % step != 0) continue;
         anchors_.push_back(y * cols + k);
         max_mag = std::max(max_mag, static_cast<int>(m[k]));
       }
@@ -199,17 +205,23 @@ void EdgeDrawing::fitLines(const std::vector<cv::Point>& chain, std::vector<cv::
   const double tol = options_.fit_error_px, tol2 = tol * tol;
   // Coordinates relative to the chain's first pixel keep the sums well conditioned.
   const double ox = chain[0].x, oy = chain[0].y;
+  // The sums of the window [i, i + L) slide along the chain: the terms are integers far below 2^53, so adding the
+  // pixel entering and subtracting the one leaving gives exactly the sums recomputed from scratch.
+  double wx = 0, wy = 0, wxx = 0, wyy = 0, wxy = 0;
+  const auto addPixel = [&](int k, double sign) {
+    const double x = chain[k].x - ox, y = chain[k].y - oy;
+    wx += sign * x, wy += sign * y, wxx += sign * (x * x), wyy += sign * (y * y), wxy += sign * (x * y);
+  };
   int i = 0;
+  for (int k = 0; k < std::min(n, L); ++k) addPixel(k, 1.0);
   while (n - i >= L) {
-    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-    for (int k = i; k < i + L; ++k) {
-      const double x = chain[k].x - ox, y = chain[k].y - oy;
-      sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
-    }
+    double sx = wx, sy = wy, sxx = wxx, syy = wyy, sxy = wxy;
     LineFit f = fitFromSums(L, sx, sy, sxx, syy, sxy);
     bool straight = f.mse <= tol2;  // cheap test first, then every pixel of the window within tol
     for (int k = i; straight && k < i + L; ++k) straight = distance(f, chain[k].x - ox, chain[k].y - oy) <= tol;
     if (!straight) {
+      addPixel(i, -1.0);
+      if (i + L < n) addPixel(i + L, 1.0);
       ++i;
       continue;
     }
@@ -235,6 +247,8 @@ void EdgeDrawing::fitLines(const std::vector<cv::Point>& chain, std::vector<cv::
     lines->emplace_back(static_cast<float>(ox + f.cx + t0 * f.dx), static_cast<float>(oy + f.cy + t0 * f.dy),
                         static_cast<float>(ox + f.cx + t1 * f.dx), static_cast<float>(oy + f.cy + t1 * f.dy));
     i = last + 1;
+    wx = wy = wxx = wyy = wxy = 0;
+    for (int k = i; k < std::min(n, i + L); ++k) addPixel(k, 1.0);
   }
 }
 

@@ -1,9 +1,11 @@
 // Edge Drawing chains and EDLines pieces on images with known edges.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <utility>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -110,6 +112,120 @@ TEST(EdgeDrawing, FlatNoiseAndTinyImages) {
   rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
   ed.detect(noise, &lines);  // must terminate; pure noise gives few and short pieces
   for (const cv::Vec4f& l : lines) EXPECT_LT(std::hypot(l[2] - l[0], l[3] - l[1]), 60.0);
+}
+
+// The plain EDLines fit (sums recomputed for every window position): the detector's sliding sums must give exactly
+// the same pieces.
+void plainFitLines(const std::vector<cv::Point>& chain, const EdgeDrawingOptions& o, std::vector<cv::Vec4f>* lines) {
+  const int n = static_cast<int>(chain.size()), L = std::max(2, o.min_line_px);
+  const double tol = o.fit_error_px;
+  const double ox = chain.empty() ? 0.0 : chain[0].x, oy = chain.empty() ? 0.0 : chain[0].y;
+  struct Fit {
+    double cx, cy, dx, dy, mse;
+  };
+  const auto fit = [](double cnt, double sx, double sy, double sxx, double syy, double sxy) {
+    Fit f{sx / cnt, sy / cnt, 1.0, 0.0, 0.0};
+    const double a = sxx / cnt - f.cx * f.cx, c = syy / cnt - f.cy * f.cy, b = sxy / cnt - f.cx * f.cy;
+    const double half = 0.5 * (a - c), root = std::sqrt(half * half + b * b);
+    f.mse = std::max(0.0, 0.5 * (a + c) - root);
+    const double lambda = 0.5 * (a + c) + root;
+    double vx = b, vy = lambda - a;
+    if (std::abs(lambda - c) > std::abs(vy)) {
+      vx = lambda - c;
+      vy = b;
+    }
+    const double norm = std::sqrt(vx * vx + vy * vy);
+    if (norm > 1e-12) {
+      f.dx = vx / norm;
+      f.dy = vy / norm;
+    }
+    return f;
+  };
+  const auto dist = [](const Fit& f, double x, double y) { return std::abs((x - f.cx) * f.dy - (y - f.cy) * f.dx); };
+  int i = 0;
+  while (n - i >= L) {
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    for (int k = i; k < i + L; ++k) {
+      const double x = chain[k].x - ox, y = chain[k].y - oy;
+      sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
+    }
+    Fit f = fit(L, sx, sy, sxx, syy, sxy);
+    bool straight = f.mse <= tol * tol;
+    for (int k = i; straight && k < i + L; ++k) straight = dist(f, chain[k].x - ox, chain[k].y - oy) <= tol;
+    if (!straight) {
+      ++i;
+      continue;
+    }
+    double cnt = L;
+    int last = i + L - 1, misses = 0, since_fit = 0;
+    for (int j = i + L; j < n; ++j) {
+      const double x = chain[j].x - ox, y = chain[j].y - oy;
+      if (dist(f, x, y) > tol) {
+        if (++misses > o.max_outliers) break;
+        continue;
+      }
+      misses = 0;
+      last = j;
+      cnt += 1.0, sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
+      if (++since_fit >= 8) {
+        f = fit(cnt, sx, sy, sxx, syy, sxy);
+        since_fit = 0;
+      }
+    }
+    f = fit(cnt, sx, sy, sxx, syy, sxy);
+    const double t0 = (chain[i].x - ox - f.cx) * f.dx + (chain[i].y - oy - f.cy) * f.dy;
+    const double t1 = (chain[last].x - ox - f.cx) * f.dx + (chain[last].y - oy - f.cy) * f.dy;
+    lines->emplace_back(static_cast<float>(ox + f.cx + t0 * f.dx), static_cast<float>(oy + f.cy + t0 * f.dy),
+                        static_cast<float>(ox + f.cx + t1 * f.dx), static_cast<float>(oy + f.cy + t1 * f.dy));
+    i = last + 1;
+  }
+}
+
+// A cluttered scene: blurred noise (many short, bent chains) with rotated squares and a circle on top.
+cv::Mat clutter(int rows, int cols, int seed) {
+  cv::Mat img(rows, cols, CV_8UC1);
+  cv::RNG rng(seed);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(img, img, cv::Size(0, 0), 2.0);
+  cv::normalize(img, img, 0, 255, cv::NORM_MINMAX);
+  for (int k = 0; k < 12; ++k) {
+    const cv::RotatedRect r(cv::Point2f(rng.uniform(0.f, static_cast<float>(cols)), rng.uniform(0.f, static_cast<float>(rows))),
+                            cv::Size2f(rng.uniform(20.f, 200.f), rng.uniform(20.f, 200.f)), rng.uniform(0.f, 180.f));
+    cv::Point2f p[4];
+    r.points(p);
+    std::vector<cv::Point> poly(p, p + 4);
+    cv::fillConvexPoly(img, poly, cv::Scalar(rng.uniform(0, 256)), cv::LINE_AA);
+  }
+  cv::circle(img, cv::Point(cols / 2, rows / 2), rows / 5, cv::Scalar(230), 3, cv::LINE_AA);
+  return img;
+}
+
+TEST(EdgeDrawing, SlidingFitEqualsThePlainFitBitForBit) {
+  const EdgeDrawingOptions opt;
+  EdgeDrawing ed(opt);
+  for (int seed : {1, 2, 3}) {
+    std::vector<cv::Vec4f> lines, plain;
+    ed.detect(clutter(480, 752, seed), &lines);
+    ASSERT_GT(ed.chains().size(), 100u);
+    for (const std::vector<cv::Point>& chain : ed.chains()) plainFitLines(chain, opt, &plain);
+    ASSERT_EQ(lines.size(), plain.size()) << "seed " << seed;
+    for (std::size_t i = 0; i < lines.size(); ++i)
+      for (int k = 0; k < 4; ++k) ASSERT_EQ(lines[i][k], plain[i][k]) << "seed " << seed << " line " << i;
+  }
+}
+
+TEST(EdgeDrawing, ReusedDetectorGivesWhatAFreshOneGives) {
+  // Scratch kept from a larger image (chains, anchor buffers, the ridge row) must not change a smaller one's result.
+  EdgeDrawing reused{EdgeDrawingOptions{}};
+  std::vector<cv::Vec4f> lines, fresh_lines;
+  reused.detect(clutter(480, 1003, 7), &lines);
+  const cv::Mat narrow = clutter(300, 749, 8);
+  reused.detect(narrow, &lines);
+  EdgeDrawing fresh{EdgeDrawingOptions{}};
+  fresh.detect(narrow, &fresh_lines);
+  ASSERT_EQ(lines.size(), fresh_lines.size());
+  for (std::size_t i = 0; i < lines.size(); ++i) EXPECT_EQ(lines[i], fresh_lines[i]) << i;
+  EXPECT_EQ(reused.chains(), fresh.chains());
 }
 
 }  // namespace
