@@ -85,17 +85,22 @@ void SchurLmSolver::addResidual(const ceres::CostFunction* cost, const ceres::Lo
   r.cost = cost;
   r.loss = loss;
   r.rows = cost->num_residuals();
+  r.first = static_cast<int>(res_blocks_.size());
+  r.count = static_cast<int>(blocks.size());
+  const auto fail = [&](const char* what) {
+    res_blocks_.resize(static_cast<std::size_t>(r.first));  // nothing of a rejected residual stays
+    throw UsageError(std::string("SchurLmSolver: ") + what);
+  };
   int eliminated = 0;
   for (std::size_t k = 0; k < blocks.size(); ++k) {
     const auto it = index_.find(blocks[k]);
-    if (it == index_.end()) throw UsageError("SchurLmSolver: a residual uses an unregistered parameter block");
+    if (it == index_.end()) fail("a residual uses an unregistered parameter block");
     const Block& b = blocks_[static_cast<std::size_t>(it->second)];
-    if (b.ambient != sizes[k]) throw UsageError("SchurLmSolver: a residual's block size differs from the block's");
-    eliminated += b.eliminate ? 1 : 0;
-    r.blocks.push_back(it->second);
+    if (b.ambient != sizes[k]) fail("a residual's block size differs from the block's");
+    if (b.eliminate && ++eliminated > 1) fail("a residual joins two eliminated blocks");
+    res_blocks_.push_back(it->second);
   }
-  if (eliminated > 1) throw UsageError("SchurLmSolver: a residual joins two eliminated blocks");
-  residuals_.push_back(std::move(r));
+  residuals_.push_back(r);
   prepared_ = false;
 }
 
@@ -113,41 +118,65 @@ void SchurLmSolver::prepare() {
       lm.size = b.tangent;
       lm.offset = eliminated_size_;
       eliminated_size_ += b.tangent;
-      landmarks_.push_back(std::move(lm));
+      landmarks_.push_back(lm);
     } else {
       b.offset = reduced_size_;
       reduced_size_ += b.tangent;
     }
   }
+  // Each landmark's kept list gets room for every kept block its residuals name (an upper bound), then is filled in
+  // residual order without repeats, as the slots are assigned.
   std::size_t arena = 0;
   for (Residual& r : residuals_) {
     r.arena = arena;
     arena += static_cast<std::size_t>(r.rows);
-    for (int bi : r.blocks) {
-      const Block& b = blocks_[static_cast<std::size_t>(bi)];
-      arena += static_cast<std::size_t>(r.rows) * static_cast<std::size_t>(b.ambient + b.tangent);
-    }
     r.landmark = -1;
-    r.slots.assign(r.blocks.size(), -1);
-    for (int bi : r.blocks)
-      if (blocks_[static_cast<std::size_t>(bi)].eliminate) r.landmark = blocks_[static_cast<std::size_t>(bi)].offset;
+    for (int k = 0; k < r.count; ++k) {
+      const Block& b = blocks_[static_cast<std::size_t>(res_blocks_[static_cast<std::size_t>(r.first + k)])];
+      arena += static_cast<std::size_t>(r.rows) * static_cast<std::size_t>(b.ambient + b.tangent);
+      if (b.eliminate) r.landmark = b.offset;
+    }
+    if (r.landmark >= 0) landmarks_[static_cast<std::size_t>(r.landmark)].kept_count += r.count - 1;
+  }
+  int kept_total = 0;
+  for (Landmark& lm : landmarks_) {
+    lm.kept_first = kept_total;
+    kept_total += lm.kept_count;
+    lm.kept_count = 0;
+  }
+  kept_.assign(static_cast<std::size_t>(kept_total), -1);
+  res_slots_.assign(res_blocks_.size(), -1);
+  for (const Residual& r : residuals_) {
     if (r.landmark < 0) continue;
     Landmark& lm = landmarks_[static_cast<std::size_t>(r.landmark)];
-    for (std::size_t k = 0; k < r.blocks.size(); ++k) {
-      const int bi = r.blocks[k];
+    int* kept = kept_.data() + lm.kept_first;
+    for (int k = 0; k < r.count; ++k) {
+      const int bi = res_blocks_[static_cast<std::size_t>(r.first + k)];
       if (blocks_[static_cast<std::size_t>(bi)].eliminate) continue;
-      const auto it = std::find(lm.kept.begin(), lm.kept.end(), bi);
-      r.slots[k] = static_cast<int>(it - lm.kept.begin());
-      if (it == lm.kept.end()) lm.kept.push_back(bi);
+      const int slot = static_cast<int>(std::find(kept, kept + lm.kept_count, bi) - kept);
+      res_slots_[static_cast<std::size_t>(r.first + k)] = slot;
+      if (slot == lm.kept_count) kept[lm.kept_count++] = bi;
     }
   }
-  arena_.assign(arena, 0.0);
+  // Matrix storage: H_ee and each H_ek at even offsets (16-byte aligned), inverse storage for e > 1.
+  const auto even = [](std::size_t n) { return (n + 1) & ~std::size_t{1}; };
+  hek_offset_.assign(kept_.size(), 0);
+  std::size_t data = 0, inv = 0;
   for (Landmark& lm : landmarks_) {
-    lm.H_ee.setZero(lm.size, lm.size);
-    lm.H_ek.resize(lm.kept.size());
-    for (std::size_t i = 0; i < lm.kept.size(); ++i)
-      lm.H_ek[i].setZero(lm.size, blocks_[static_cast<std::size_t>(lm.kept[i])].tangent);
+    const std::size_t e = static_cast<std::size_t>(lm.size);
+    lm.hee = data;
+    data += even(e * e);
+    for (int i = 0; i < lm.kept_count; ++i) {
+      const std::size_t k = static_cast<std::size_t>(lm.kept_first + i);
+      hek_offset_[k] = data;
+      data += even(e * static_cast<std::size_t>(blocks_[static_cast<std::size_t>(kept_[k])].tangent));
+    }
+    lm.inv = inv;
+    if (lm.size > 1) inv += even(e * e);
   }
+  lm_data_.setZero(static_cast<Eigen::Index>(data));
+  inv_data_.setZero(static_cast<Eigen::Index>(inv));
+  arena_.assign(arena, 0.0);
   H_.setZero(reduced_size_, reduced_size_);
   g_.setZero(reduced_size_);
   g_e_.setZero(eliminated_size_);
@@ -162,10 +191,7 @@ double SchurLmSolver::evaluate(bool linearise) {
     H_.setZero();
     g_.setZero();
     g_e_.setZero();
-    for (Landmark& lm : landmarks_) {
-      lm.H_ee.setZero();
-      for (Eigen::MatrixXd& m : lm.H_ek) m.setZero();
-    }
+    lm_data_.setZero();
     // Manifold Jacobians at the linearisation point, once per block.
     for (std::size_t i = 0; i < blocks_.size(); ++i) {
       const Block& b = blocks_[i];
@@ -175,23 +201,25 @@ double SchurLmSolver::evaluate(bool linearise) {
     }
   }
   double total = 0.0;
-  std::vector<double*> J_ptrs;
   for (const Residual& res : residuals_) {
-    const std::size_t nb = res.blocks.size();
+    const std::size_t nb = static_cast<std::size_t>(res.count);
+    const int* res_blocks = res_blocks_.data() + res.first;
+    const int* res_slots = res_slots_.data() + res.first;
     const int rows = res.rows;
     double* scratch = arena_.data() + res.arena;
     VecMap r(scratch, rows);
     param_ptrs_.resize(nb);
-    J_ptrs.resize(nb);
+    jacobian_ptrs_.resize(nb);
+    double** J_ptrs = jacobian_ptrs_.data();
     double* p = scratch + rows;
     for (std::size_t k = 0; k < nb; ++k) {
-      const Block& b = blocks_[static_cast<std::size_t>(res.blocks[k])];
+      const Block& b = blocks_[static_cast<std::size_t>(res_blocks[k])];
       param_ptrs_[k] = b.data;
       J_ptrs[k] = p;  // ambient Jacobian, then the tangent one
       p += static_cast<std::ptrdiff_t>(rows) * (b.ambient + b.tangent);
     }
     const double* const* params = param_ptrs_.data();
-    if (!res.cost->Evaluate(params, scratch, linearise ? J_ptrs.data() : nullptr) || !r.allFinite())
+    if (!res.cost->Evaluate(params, scratch, linearise ? J_ptrs : nullptr) || !r.allFinite())
       return std::numeric_limits<double>::infinity();
     const double s = r.squaredNorm();
     double rho[3] = {s, 1.0, 0.0};
@@ -201,7 +229,7 @@ double SchurLmSolver::evaluate(bool linearise) {
 
     // Tangent Jacobians (row-major, rows x tangent), right after each ambient one.
     for (std::size_t k = 0; k < nb; ++k) {
-      const std::size_t bi = static_cast<std::size_t>(res.blocks[k]);
+      const std::size_t bi = static_cast<std::size_t>(res_blocks[k]);
       const Block& b = blocks_[bi];
       Map Ja(J_ptrs[k], rows, b.ambient);
       Map Jt(J_ptrs[k] + static_cast<std::ptrdiff_t>(rows) * b.ambient, rows, b.tangent);
@@ -217,7 +245,7 @@ double SchurLmSolver::evaluate(bool linearise) {
         Jt = Ja;
     }
     const auto tangent = [&](std::size_t k) {
-      const Block& b = blocks_[static_cast<std::size_t>(res.blocks[k])];
+      const Block& b = blocks_[static_cast<std::size_t>(res_blocks[k])];
       return Map(J_ptrs[k] + static_cast<std::ptrdiff_t>(rows) * b.ambient, rows, b.tangent);
     };
     // Robustification as Ceres' corrector (Triggs et al. 2000, sec. 4.3): scale r and J so that the Gauss-Newton
@@ -239,16 +267,17 @@ double SchurLmSolver::evaluate(bool linearise) {
 
     Landmark* lm = res.landmark >= 0 ? &landmarks_[static_cast<std::size_t>(res.landmark)] : nullptr;
     for (std::size_t a = 0; a < nb; ++a) {
-      const Block& ba = blocks_[static_cast<std::size_t>(res.blocks[a])];
+      const Block& ba = blocks_[static_cast<std::size_t>(res_blocks[a])];
       const Map Ja = tangent(a);
       if (ba.eliminate) {
-        if (!addJtJFixed(rows, ba.tangent, ba.tangent, lm->H_ee.data(), lm->size, Ja.data(), Ja.data()))
-          lm->H_ee.noalias() += Ja.transpose() * Ja;
+        MatMap H_ee = Hee(*lm);
+        if (!addJtJFixed(rows, ba.tangent, ba.tangent, H_ee.data(), lm->size, Ja.data(), Ja.data()))
+          H_ee.noalias() += Ja.transpose() * Ja;
         if (!addJtJFixed(rows, ba.tangent, 1, g_e_.data() + lm->offset, lm->size, Ja.data(), r.data()))
           g_e_.segment(lm->offset, lm->size).noalias() += Ja.transpose() * r;
         for (std::size_t b = 0; b < nb; ++b) {
-          if (res.slots[b] < 0) continue;
-          Eigen::MatrixXd& Hek = lm->H_ek[static_cast<std::size_t>(res.slots[b])];
+          if (res_slots[b] < 0) continue;
+          MatMap Hek = this->Hek(*lm, res_slots[b]);
           const Map Jb = tangent(b);
           if (!addJtJFixed(rows, ba.tangent, static_cast<int>(Jb.cols()), Hek.data(), Hek.rows(), Ja.data(), Jb.data()))
             Hek.noalias() += Ja.transpose() * Jb;
@@ -258,7 +287,7 @@ double SchurLmSolver::evaluate(bool linearise) {
       if (!addJtJFixed(rows, ba.tangent, 1, g_.data() + ba.offset, reduced_size_, Ja.data(), r.data()))
         g_.segment(ba.offset, ba.tangent).noalias() += Ja.transpose() * r;
       for (std::size_t b = a; b < nb; ++b) {
-        const Block& bb = blocks_[static_cast<std::size_t>(res.blocks[b])];
+        const Block& bb = blocks_[static_cast<std::size_t>(res_blocks[b])];
         if (bb.eliminate) continue;
         const Map Jb = tangent(b);
         double* dst = H_.data() + ba.offset + static_cast<Eigen::Index>(bb.offset) * reduced_size_;
@@ -271,125 +300,140 @@ double SchurLmSolver::evaluate(bool linearise) {
     // Each pair of distinct blocks was accumulated once, at (first, second) in its residual's block order, which
     // may fall in either triangle; each block's own diagonal block is complete. H = A + A^T with the diagonal blocks
     // halved back.
-    const Eigen::MatrixXd At = H_.transpose();
-    H_ += At;
+    // In place (no temporary): each pair (r, c), r < c, gets the same sum on both sides; inside a diagonal block
+    // that sum is halved, as 0.5 (A + A^T) there. The diagonal entries keep their value (2x, then halved: exact).
+    block_of_row_.resize(static_cast<std::size_t>(reduced_size_));
     for (const Block& b : blocks_)
-      if (!b.eliminate) H_.block(b.offset, b.offset, b.tangent, b.tangent) *= 0.5;
+      if (!b.eliminate) std::fill_n(block_of_row_.begin() + b.offset, b.tangent, b.offset);
+    for (Eigen::Index c = 0; c < reduced_size_; ++c)
+      for (Eigen::Index r = 0; r < c; ++r) {
+        double v = H_(r, c) + H_(c, r);
+        if (block_of_row_[static_cast<std::size_t>(r)] == block_of_row_[static_cast<std::size_t>(c)]) v *= 0.5;
+        H_(r, c) = H_(c, r) = v;
+      }
   }
   return total;
 }
 bool SchurLmSolver::computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::VectorXd* dx_elim,
                                 double* model_decrease) {
-  const auto damping = [&](const Eigen::VectorXd& diag) {
-    return diag.cwiseMax(options_.min_diagonal).cwiseMin(options_.max_diagonal).eval();
-  };
-  const Eigen::VectorXd D = damping(H_.diagonal());
-  Eigen::MatrixXd S = H_;
-  S.diagonal() += mu * D;
-  Eigen::VectorXd rhs = -g_;
-  Eigen::VectorXd D_e(eliminated_size_);
-  std::vector<Eigen::MatrixXd> inv_general(landmarks_.size());  // damped H_ee^-1 of landmarks with e > 1
-  Eigen::VectorXd inv_scalar(static_cast<Eigen::Index>(landmarks_.size()));
+  const double lo = options_.min_diagonal, hi = options_.max_diagonal;  // the damping's clamp of diag(J^T J)
+  // The reduced system S = H - sum H_ke H_ee^-1 H_ek. Its Cholesky factorisation reads the lower triangle only, so
+  // the coupling updates are made for the blocks on or below the diagonal (row offset >= column offset).
+  D_ = H_.diagonal().cwiseMax(lo).cwiseMin(hi);
+  S_ = H_;
+  S_.diagonal() += mu * D_;
+  rhs_ = -g_;
+  D_e_.resize(eliminated_size_);
+  inv_scalar_.resize(static_cast<Eigen::Index>(landmarks_.size()));
+  const auto lower = [](const Block& bi, const Block& bj) { return bi.offset >= bj.offset; };
   for (std::size_t l = 0; l < landmarks_.size(); ++l) {
     const Landmark& lm = landmarks_[l];
-    D_e.segment(lm.offset, lm.size) = damping(lm.H_ee.diagonal());
+    const MatMap H_ee = Hee(lm);
+    D_e_.segment(lm.offset, lm.size) = H_ee.diagonal().cwiseMax(lo).cwiseMin(hi);
     if (lm.size == 1) {
       // The common case (inverse depth): scalar elimination, rank-one updates of the reduced system.
-      const double a = lm.H_ee(0, 0) + mu * D_e(lm.offset);
+      const double a = H_ee(0, 0) + mu * D_e_(lm.offset);
       if (!(a > 0.0)) return false;
       const double inv = 1.0 / a;
-      inv_scalar(static_cast<Eigen::Index>(l)) = inv;
+      inv_scalar_(static_cast<Eigen::Index>(l)) = inv;
       const double g = g_e_(lm.offset);
-      for (std::size_t i = 0; i < lm.kept.size(); ++i) {
-        const Block& bi = blocks_[static_cast<std::size_t>(lm.kept[i])];
-        const auto hi = lm.H_ek[i].row(0);
-        rhs.segment(bi.offset, bi.tangent) += (inv * g) * hi.transpose();
-        for (std::size_t j = 0; j < lm.kept.size(); ++j) {
-          const Block& bj = blocks_[static_cast<std::size_t>(lm.kept[j])];
+      for (int i = 0; i < lm.kept_count; ++i) {
+        const Block& bi = blocks_[static_cast<std::size_t>(keptBlock(lm, i))];
+        const MatMap Hi = Hek(lm, i);
+        const auto hi = Hi.row(0);
+        rhs_.segment(bi.offset, bi.tangent) += (inv * g) * hi.transpose();
+        for (int j = 0; j < lm.kept_count; ++j) {
+          const Block& bj = blocks_[static_cast<std::size_t>(keptBlock(lm, j))];
+          if (!lower(bi, bj)) continue;
+          const MatMap Hj = Hek(lm, j);
           if (bi.tangent == 6 && bj.tangent == 6) {
-            const Eigen::Matrix<double, 6, 1> u = inv * Eigen::Map<const Eigen::Matrix<double, 6, 1>>(lm.H_ek[i].data());
-            S.block<6, 6>(bi.offset, bj.offset).noalias() -=
-                u * Eigen::Map<const Eigen::Matrix<double, 1, 6>>(lm.H_ek[j].data());
+            const Eigen::Matrix<double, 6, 1> u = inv * Eigen::Map<const Eigen::Matrix<double, 6, 1>>(Hi.data());
+            S_.block<6, 6>(bi.offset, bj.offset).noalias() -= u * Eigen::Map<const Eigen::Matrix<double, 1, 6>>(Hj.data());
           } else {
-            S.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -=
-                (inv * hi.transpose()) * lm.H_ek[j].row(0);
+            S_.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -= (inv * hi.transpose()) * Hj.row(0);
           }
         }
       }
       continue;
     }
+    MatMap inv_map(inv_data_.data() + lm.inv, lm.size, lm.size);
     if (lm.size == 4) {
       // Lines (orthonormal 4-DoF): fixed-size elimination, 4 x 6 couplings to the poses.
-      Eigen::Matrix4d A = lm.H_ee;
-      A.diagonal() += mu * D_e.segment<4>(lm.offset) + Eigen::Vector4d::Constant(options_.landmark_damping);
+      Eigen::Matrix4d A = H_ee;
+      A.diagonal() += mu * D_e_.segment<4>(lm.offset) + Eigen::Vector4d::Constant(options_.landmark_damping);
       const Eigen::LLT<Eigen::Matrix4d> llt4(A);
       if (llt4.info() != Eigen::Success) return false;
       const Eigen::Matrix4d inv = llt4.solve(Eigen::Matrix4d::Identity());
-      inv_general[l] = inv;
+      inv_map = inv;
       const Eigen::Vector4d inv_g = inv * g_e_.segment<4>(lm.offset);
-      for (std::size_t i = 0; i < lm.kept.size(); ++i) {
-        const Block& bi = blocks_[static_cast<std::size_t>(lm.kept[i])];
+      for (int i = 0; i < lm.kept_count; ++i) {
+        const Block& bi = blocks_[static_cast<std::size_t>(keptBlock(lm, i))];
+        const MatMap Hi_dyn = Hek(lm, i);
         if (bi.tangent != 6) {
-          rhs.segment(bi.offset, bi.tangent).noalias() += lm.H_ek[i].transpose() * inv_g;
-          const Eigen::MatrixXd HtInv = lm.H_ek[i].transpose() * inv;
-          for (std::size_t j = 0; j < lm.kept.size(); ++j) {
-            const Block& bj = blocks_[static_cast<std::size_t>(lm.kept[j])];
-            S.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -= HtInv * lm.H_ek[j];
+          rhs_.segment(bi.offset, bi.tangent).noalias() += Hi_dyn.transpose() * inv_g;
+          const Eigen::MatrixXd HtInv = Hi_dyn.transpose() * inv;  // rare (a kept block other than a pose)
+          for (int j = 0; j < lm.kept_count; ++j) {
+            const Block& bj = blocks_[static_cast<std::size_t>(keptBlock(lm, j))];
+            if (!lower(bi, bj)) continue;
+            S_.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -= HtInv * Hek(lm, j);
           }
           continue;
         }
-        const Eigen::Map<const Eigen::Matrix<double, 4, 6>> Hi(lm.H_ek[i].data());
-        rhs.segment<6>(bi.offset).noalias() += Hi.transpose() * inv_g;
+        const Eigen::Map<const Eigen::Matrix<double, 4, 6>> Hi(Hi_dyn.data());
+        rhs_.segment<6>(bi.offset).noalias() += Hi.transpose() * inv_g;
         const Eigen::Matrix<double, 6, 4> HtInv = Hi.transpose() * inv;
-        for (std::size_t j = 0; j < lm.kept.size(); ++j) {
-          const Block& bj = blocks_[static_cast<std::size_t>(lm.kept[j])];
+        for (int j = 0; j < lm.kept_count; ++j) {
+          const Block& bj = blocks_[static_cast<std::size_t>(keptBlock(lm, j))];
+          if (!lower(bi, bj)) continue;
+          const MatMap Hj = Hek(lm, j);
           if (bj.tangent == 6)
-            S.block<6, 6>(bi.offset, bj.offset).noalias() -=
-                HtInv * Eigen::Map<const Eigen::Matrix<double, 4, 6>>(lm.H_ek[j].data());
+            S_.block<6, 6>(bi.offset, bj.offset).noalias() -= HtInv * Eigen::Map<const Eigen::Matrix<double, 4, 6>>(Hj.data());
           else
-            S.block(bi.offset, bj.offset, 6, bj.tangent).noalias() -= HtInv * lm.H_ek[j];
+            S_.block(bi.offset, bj.offset, 6, bj.tangent).noalias() -= HtInv * Hj;
         }
       }
       continue;
     }
-    Eigen::MatrixXd A = lm.H_ee;
-    A.diagonal() += mu * D_e.segment(lm.offset, lm.size) +
+    Eigen::MatrixXd A = H_ee;
+    A.diagonal() += mu * D_e_.segment(lm.offset, lm.size) +
                     Eigen::VectorXd::Constant(lm.size, options_.landmark_damping);
     Eigen::LLT<Eigen::MatrixXd> llt(A);
     if (llt.info() != Eigen::Success) return false;
-    inv_general[l] = llt.solve(Eigen::MatrixXd::Identity(lm.size, lm.size));
-    const Eigen::VectorXd inv_g = inv_general[l] * g_e_.segment(lm.offset, lm.size);
-    for (std::size_t i = 0; i < lm.kept.size(); ++i) {
-      const Block& bi = blocks_[static_cast<std::size_t>(lm.kept[i])];
-      rhs.segment(bi.offset, bi.tangent).noalias() += lm.H_ek[i].transpose() * inv_g;
-      const Eigen::MatrixXd HtInv = lm.H_ek[i].transpose() * inv_general[l];
-      for (std::size_t j = 0; j < lm.kept.size(); ++j) {
-        const Block& bj = blocks_[static_cast<std::size_t>(lm.kept[j])];
-        S.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -= HtInv * lm.H_ek[j];
+    inv_map = llt.solve(Eigen::MatrixXd::Identity(lm.size, lm.size));
+    const Eigen::VectorXd inv_g = inv_map * g_e_.segment(lm.offset, lm.size);
+    for (int i = 0; i < lm.kept_count; ++i) {
+      const Block& bi = blocks_[static_cast<std::size_t>(keptBlock(lm, i))];
+      const MatMap Hi = Hek(lm, i);
+      rhs_.segment(bi.offset, bi.tangent).noalias() += Hi.transpose() * inv_g;
+      const Eigen::MatrixXd HtInv = Hi.transpose() * inv_map;
+      for (int j = 0; j < lm.kept_count; ++j) {
+        const Block& bj = blocks_[static_cast<std::size_t>(keptBlock(lm, j))];
+        if (!lower(bi, bj)) continue;
+        S_.block(bi.offset, bj.offset, bi.tangent, bj.tangent).noalias() -= HtInv * Hek(lm, j);
       }
     }
   }
-  Eigen::LLT<Eigen::MatrixXd> llt(S);
-  if (llt.info() != Eigen::Success) return false;
-  *dx_kept = llt.solve(rhs);
+  llt_.compute(S_);
+  if (llt_.info() != Eigen::Success) return false;
+  *dx_kept = llt_.solve(rhs_);
   if (!dx_kept->allFinite()) return false;
   // Back-substitution: dx_e = A^-1 (-g_e - H_ek dx_k).
   dx_elim->resize(eliminated_size_);
   for (std::size_t l = 0; l < landmarks_.size(); ++l) {
     const Landmark& lm = landmarks_[l];
-    Eigen::VectorXd b = -g_e_.segment(lm.offset, lm.size);
-    for (std::size_t i = 0; i < lm.kept.size(); ++i) {
-      const Block& bi = blocks_[static_cast<std::size_t>(lm.kept[i])];
-      b.noalias() -= lm.H_ek[i] * dx_kept->segment(bi.offset, bi.tangent);
+    back_ = -g_e_.segment(lm.offset, lm.size);
+    for (int i = 0; i < lm.kept_count; ++i) {
+      const Block& bi = blocks_[static_cast<std::size_t>(keptBlock(lm, i))];
+      back_.noalias() -= Hek(lm, i) * dx_kept->segment(bi.offset, bi.tangent);
     }
     if (lm.size == 1)
-      (*dx_elim)(lm.offset) = inv_scalar(static_cast<Eigen::Index>(l)) * b(0);
+      (*dx_elim)(lm.offset) = inv_scalar_(static_cast<Eigen::Index>(l)) * back_(0);
     else
-      dx_elim->segment(lm.offset, lm.size) = inv_general[l] * b;
+      dx_elim->segment(lm.offset, lm.size) = MatMap(inv_data_.data() + lm.inv, lm.size, lm.size) * back_;
   }
   // Decrease of the undamped quadratic model: with (H + mu D) dx = -g it is 0.5 (mu dx'D dx - g'dx).
-  double dec = mu * dx_kept->dot(D.cwiseProduct(*dx_kept)) - g_.dot(*dx_kept) +
-               mu * dx_elim->dot(D_e.cwiseProduct(*dx_elim)) - g_e_.dot(*dx_elim);
+  double dec = mu * dx_kept->dot(D_.cwiseProduct(*dx_kept)) - g_.dot(*dx_kept) +
+               mu * dx_elim->dot(D_e_.cwiseProduct(*dx_elim)) - g_e_.dot(*dx_elim);
   for (const Landmark& lm : landmarks_)
     if (lm.size > 1) dec += options_.landmark_damping * dx_elim->segment(lm.offset, lm.size).squaredNorm();
   *model_decrease = 0.5 * dec;
@@ -397,14 +441,13 @@ bool SchurLmSolver::computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::Vect
 }
 
 void SchurLmSolver::applyStep(const Eigen::VectorXd& dx_kept, const Eigen::VectorXd& dx_elim) {
-  std::vector<double> out;
   for (const Block& b : blocks_) {
     const double* delta = b.eliminate ? dx_elim.data() + landmarks_[static_cast<std::size_t>(b.offset)].offset
                                       : dx_kept.data() + b.offset;
     if (b.manifold != nullptr) {
-      out.resize(static_cast<std::size_t>(b.ambient));
-      b.manifold->Plus(b.data, delta, out.data());
-      std::copy(out.begin(), out.end(), b.data);
+      plus_out_.resize(static_cast<std::size_t>(b.ambient));
+      b.manifold->Plus(b.data, delta, plus_out_.data());
+      std::copy(plus_out_.begin(), plus_out_.end(), b.data);
     } else {
       for (int k = 0; k < b.ambient; ++k) b.data[k] += delta[k];
     }

@@ -15,6 +15,7 @@
 #include <ceres/cost_function.h>
 #include <ceres/loss_function.h>
 #include <ceres/manifold.h>
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 namespace linnet {
@@ -78,21 +79,32 @@ class SchurLmSolver {
   struct Residual {
     const ceres::CostFunction* cost;
     const ceres::LossFunction* loss;
-    std::vector<int> blocks;  // indices into blocks_
+    int first;                // its blocks are res_blocks_[first, first + count) (indices into blocks_)
+    int count;
     int rows;
     int landmark = -1;        // index into landmarks_ of its eliminated block, -1 if none
-    std::vector<int> slots;   // per block: its index in that landmark's `kept` list (-1: eliminated / no landmark)
     std::size_t arena = 0;    // offset of its scratch in arena_: r (rows), then per block J ambient and J tangent
   };
-  // One eliminated block's normal-equation pieces.
+  // One eliminated block's normal-equation pieces. Its kept blocks and matrices live in flat arrays (kept_,
+  // hek_offset_, lm_data_), so that a solve allocates per problem, not per landmark.
   struct Landmark {
-    int block;                          // index into blocks_
-    int size;                           // tangent size e
-    int offset;                         // offset in the stacked eliminated vectors (g_e_, D_e_, dx)
-    Eigen::MatrixXd H_ee;               // e x e
-    std::vector<int> kept;              // kept blocks it shares residuals with (indices into blocks_)
-    std::vector<Eigen::MatrixXd> H_ek;  // e x tangent(kept[i])
+    int block;              // index into blocks_
+    int size;               // tangent size e
+    int offset;             // offset in the stacked eliminated vectors (g_e_, D_e, dx)
+    int kept_first = 0;     // its kept blocks (those it shares residuals with): kept_[kept_first, + kept_count)
+    int kept_count = 0;
+    std::size_t hee = 0;    // H_ee (e x e, column-major) at lm_data_[hee]
+    std::size_t inv = 0;    // the damped H_ee^-1 of a multi-dimensional landmark at inv_data_[inv]
   };
+  using MatMap = Eigen::Map<Eigen::MatrixXd, Eigen::Aligned16>;
+  MatMap Hee(const Landmark& lm) { return MatMap(lm_data_.data() + lm.hee, lm.size, lm.size); }
+  // H_ek of the landmark's i-th kept block: e x tangent(kept), column-major.
+  MatMap Hek(const Landmark& lm, int i) {
+    const int k = lm.kept_first + i;
+    return MatMap(lm_data_.data() + hek_offset_[static_cast<std::size_t>(k)], lm.size,
+                  blocks_[static_cast<std::size_t>(kept_[static_cast<std::size_t>(k)])].tangent);
+  }
+  int keptBlock(const Landmark& lm, int i) const { return kept_[static_cast<std::size_t>(lm.kept_first + i)]; }
   void prepare();
   /// Residuals, robustified, with tangent Jacobians when `linearise`: fills H_, g_ and the landmarks' pieces.
   double evaluate(bool linearise);
@@ -105,7 +117,13 @@ class SchurLmSolver {
   std::vector<Block> blocks_;
   std::unordered_map<const double*, int> index_;
   std::vector<Residual> residuals_;
+  std::vector<int> res_blocks_;  // the residuals' blocks, flat
+  std::vector<int> res_slots_;   // parallel: the block's index in its residual's landmark's kept list (-1: none)
   std::vector<Landmark> landmarks_;
+  std::vector<int> kept_;                 // the landmarks' kept blocks, flat (with slack)
+  std::vector<std::size_t> hek_offset_;   // parallel to kept_: offset of that H_ek in lm_data_
+  Eigen::VectorXd lm_data_;               // every landmark's H_ee and H_ek, 16-byte aligned pieces
+  Eigen::VectorXd inv_data_;              // damped H_ee^-1 of the multi-dimensional landmarks (computeStep)
   int reduced_size_ = 0;
   int eliminated_size_ = 0;
   bool prepared_ = false;
@@ -113,11 +131,16 @@ class SchurLmSolver {
   Eigen::MatrixXd H_;  // reduced-size dense J^T J of the kept blocks (upper and lower filled)
   Eigen::VectorXd g_;  // J^T r of the kept blocks
   Eigen::VectorXd g_e_;  // J^T r of the eliminated blocks, stacked
+  std::vector<int> block_of_row_;  // offset of the kept block each row of H_ belongs to (symmetrisation)
   std::vector<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> plus_jacobians_;
   std::vector<double> arena_;  // per-residual scratch (residual and Jacobians), allocated once per problem
-  std::vector<double*> param_ptrs_;  // scratch for CostFunction::Evaluate
+  std::vector<double*> param_ptrs_, jacobian_ptrs_;  // scratch for CostFunction::Evaluate
+  // computeStep scratch, kept between iterations (same sizes: no allocation after the first).
+  Eigen::MatrixXd S_;
+  Eigen::VectorXd rhs_, D_, D_e_, inv_scalar_, back_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
   SchurLmOptions options_;
-  std::vector<double> saved_;
+  std::vector<double> saved_, plus_out_;
 };
 
 }  // namespace linnet
