@@ -111,7 +111,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   correctCalibration(&visual);
   for (ResidualSpec& r : visual) residuals.push_back(std::move(r));
   for (const ResidualSpec& r : residuals) {
-    problem.AddResidualBlock(r.cost.get(), lossOf(r), r.blocks);
+    problem.AddResidualBlock(r.cost.get(), lossOf(r), r.blocks.data(), static_cast<int>(r.blocks.size()));
     keep.push_back(r.cost);
   }
   // The gauge (position and yaw) is held by the window's initial prior, carried on by marginalisation; no block is
@@ -240,7 +240,7 @@ void EstimatorCore::marginaliseOldest() {
   }
   for (const ResidualSpec& r : inertial) {
     for (BlockKey k : r.keys) regFrameKey(k);
-    m.addResidual(r.cost, nullptr, r.keys);
+    m.addResidual(r.cost, nullptr, r.keys.vector());
   }
   std::vector<BlockKey> drop = drop_frame;
   // A visual residual: its frame (and calibration) blocks are kept, its landmark is dropped with the frame.
@@ -256,7 +256,7 @@ void EstimatorCore::marginaliseOldest() {
         drop.push_back(r.keys[b]);
       }
     }
-    m.addResidual(r.cost, lossOf(r), r.keys);
+    m.addResidual(r.cost, lossOf(r), r.keys.vector());
   };
   std::vector<ResidualSpec> visual = points_.residuals(window_, old_id, false, frameWeights(false));
   correctCalibration(&visual);

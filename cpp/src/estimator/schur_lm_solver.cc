@@ -76,7 +76,7 @@ void SchurLmSolver::addParameterBlock(double* data, int ambient_size, const cere
 }
 
 void SchurLmSolver::addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss,
-                                const std::vector<double*>& blocks) {
+                                std::span<double* const> blocks) {
   const std::vector<int32_t>& sizes = cost->parameter_block_sizes();
   if (sizes.size() != blocks.size())
     throw UsageError("SchurLmSolver: a residual got " + std::to_string(blocks.size()) + " blocks, its cost function " +

@@ -113,7 +113,7 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
       stereoPass(left, right_in, with_clahe);
     }
   } else {
-    for (Track& tr : tracks_) tr.has_right = tr.right_prior = false;
+    for (Track& tr : tracks_) tr.has_right = tr.right_prior = tr.stereo_skipped = false;
   }
 
   points->reserve(points->size() + tracks_.size());
@@ -197,7 +197,7 @@ void PointTracker::trackTemporal(double dt) {
     Track tr = tracks_[i];
     uv_prev.push_back(tr.uv);
     // Stereo prior for this frame: last frame's right match moved by this frame's left flow.
-    tr.right_prior = tr.has_right;
+    tr.right_prior = tr.has_right || tr.stereo_skipped;
     if (tr.right_prior) tr.px1 += cur[i] - prev[i];
     tr.has_right = false;
     tr.px = cur[i];
@@ -278,6 +278,8 @@ void PointTracker::replenish(const cv::Mat& image) {
     tr.has_right = false;
     tr.right_prior = false;
     tr.stereo_retry_frame = 0;
+    tr.stereo_frame = 0;
+    tr.stereo_skipped = false;
     tr.px1 = cv::Point2f(0.f, 0.f);
     tr.uv1 = Vec2::Zero();
     tracks_.push_back(tr);
@@ -328,6 +330,9 @@ void PointTracker::matchStereo(const std::vector<cv::Mat>& pyr_left) {
   for (std::size_t i = 0; i < tracks_.size(); ++i) {
     Track& tr = tracks_[i];
     tr.has_right = false;
+    tr.stereo_skipped = tr.right_prior && frame_index_ - tr.stereo_frame < opt_.stereo_refresh_interval;
+    if (tr.stereo_skipped) continue;
+    if (tr.right_prior) tr.stereo_frame = frame_index_;
     if (!tr.right_prior && frame_index_ < tr.stereo_retry_frame) continue;
     idx.push_back(i);
     px0.push_back(tr.px);

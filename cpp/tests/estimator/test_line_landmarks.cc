@@ -181,8 +181,8 @@ TEST(LineLandmarks, ResidualsPerFrameAndCameraWithZeroCostAtTheTruth) {
   for (std::size_t k = 0; k < res.size(); ++k) {
     const ResidualSpec& r = res[k];
     const FrameId frame = static_cast<FrameId>(k / 2);  // cam0, then cam1, per frame
-    EXPECT_EQ(r.keys, (std::vector<std::int64_t>{frameBlockKey(frame, BlockKind::kPose), lineBlockKey(7)}));
-    EXPECT_EQ(r.blocks, (std::vector<double*>{w.find(frame)->pose.data(), const_cast<double*>(block)}));
+    EXPECT_EQ(r.keys.vector(), (std::vector<std::int64_t>{frameBlockKey(frame, BlockKind::kPose), lineBlockKey(7)}));
+    EXPECT_EQ(r.blocks.vector(), (std::vector<double*>{w.find(frame)->pose.data(), const_cast<double*>(block)}));
     EXPECT_TRUE(r.line);
     EXPECT_TRUE(r.robust);
     ASSERT_EQ(r.cost->num_residuals(), 2);

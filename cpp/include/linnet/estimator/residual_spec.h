@@ -3,20 +3,62 @@
 // marginalisation code handle all kinds the same way.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
+#include <stdexcept>
 #include <vector>
 
 #include <ceres/cost_function.h>
 
 namespace linnet {
 
+/// The few blocks of one residual, stored inline: a window builds thousands of residuals per frame, and two heap
+/// vectors each cost about as much as evaluating them. Holds at most kMaxResidualBlocks (a reprojection residual with
+/// both calibration wrappers has 5); more is a programming error (std::length_error).
+inline constexpr std::size_t kMaxResidualBlocks = 8;
+template <class T>
+class BlockList {
+ public:
+  BlockList() = default;
+  BlockList(std::initializer_list<T> values) { assign(values); }
+  BlockList& operator=(std::initializer_list<T> values) {
+    assign(values);
+    return *this;
+  }
+  void push_back(T v) {
+    if (size_ == kMaxResidualBlocks) throw std::length_error("BlockList: more than kMaxResidualBlocks blocks");
+    items_[size_++] = v;
+  }
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  T& operator[](std::size_t i) { return items_[i]; }
+  const T& operator[](std::size_t i) const { return items_[i]; }
+  T* data() { return items_.data(); }
+  const T* data() const { return items_.data(); }
+  T* begin() { return items_.data(); }
+  T* end() { return items_.data() + size_; }
+  const T* begin() const { return items_.data(); }
+  const T* end() const { return items_.data() + size_; }
+  std::vector<T> vector() const { return std::vector<T>(begin(), end()); }
+
+ private:
+  void assign(std::initializer_list<T> values) {
+    size_ = 0;
+    for (const T& v : values) push_back(v);
+  }
+  std::array<T, kMaxResidualBlocks> items_{};
+  std::size_t size_ = 0;
+};
+
 struct ResidualSpec {
   std::shared_ptr<ceres::CostFunction> cost;
   bool robust = false;                 // wrap in the Huber loss of the visual residuals
   bool line = false;                   // a line residual (its own Huber threshold), else a point or IMU residual
-  std::vector<double*> blocks;         // parameter blocks, in the cost function's order
-  std::vector<std::int64_t> keys;      // the same blocks as marginalisation keys
+  BlockList<double*> blocks;           // parameter blocks, in the cost function's order
+  BlockList<std::int64_t> keys;        // the same blocks as marginalisation keys
 };
 
 /// Marginalisation keys of landmark blocks. Frame blocks use frameBlockKey() (>= 0), landmarks negative keys.

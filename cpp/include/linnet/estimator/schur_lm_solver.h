@@ -9,6 +9,8 @@
 // per-frame window solve this solver needs about a fifth of its instructions for the same result.
 #pragma once
 
+#include <initializer_list>
+#include <span>
 #include <unordered_map>
 #include <vector>
 
@@ -58,7 +60,11 @@ class SchurLmSolver {
   /// never with another eliminated block). The pointers must stay valid until solve() returns.
   void addParameterBlock(double* data, int ambient_size, const ceres::Manifold* manifold, bool eliminate);
   /// Adds a residual over registered blocks (in the cost function's order). `loss` may be nullptr.
-  void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss, const std::vector<double*>& blocks);
+  void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss, std::span<double* const> blocks);
+  void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss,
+                   std::initializer_list<double*> blocks) {
+    addResidual(cost, loss, std::span<double* const>(blocks.begin(), blocks.size()));
+  }
 
   /// Minimises the cost, starting from the values in the blocks, and leaves the result there. Throws UsageError for a
   /// malformed problem (unknown block, a residual between two eliminated blocks, wrong block sizes).
