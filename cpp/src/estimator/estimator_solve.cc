@@ -174,6 +174,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
   SchurLmOptions so;
   so.max_iterations = max_iterations;
   so.max_time_s = options_.solver.max_solver_time_s;
+  so.function_tolerance = options_.solver.function_tolerance;
   {
     ScopedMs timer(&solver_ms_);
     solver.solve(so);

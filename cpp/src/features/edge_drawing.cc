@@ -68,28 +68,25 @@ void EdgeDrawing::gradient(const cv::Mat& gray) {
   cv::Sobel(*src, gx_, CV_16S, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
   cv::Sobel(*src, gy_, CV_16S, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
   const int rows = gray.rows, cols = gray.cols;
-  mag_.create(rows, cols, CV_16U);
-  dir_.create(rows, cols, CV_8U);
+  px_.create(rows, cols, CV_16U);
   const int threshold = options_.gradient_threshold;
   for (int y = 0; y < rows; ++y) {
-    const std::int16_t* px = gx_.ptr<std::int16_t>(y);
-    const std::int16_t* py = gy_.ptr<std::int16_t>(y);
-    std::uint16_t* m = mag_.ptr<std::uint16_t>(y);
-    std::uint8_t* d = dir_.ptr<std::uint8_t>(y);
+    const std::int16_t* gx = gx_.ptr<std::int16_t>(y);
+    const std::int16_t* gy = gy_.ptr<std::int16_t>(y);
+    std::uint16_t* p = px_.ptr<std::uint16_t>(y);
     for (int x = 0; x < cols; ++x) {
-      const int ax = std::abs(static_cast<int>(px[x])), ay = std::abs(static_cast<int>(py[x]));
+      const int ax = std::abs(static_cast<int>(gx[x])), ay = std::abs(static_cast<int>(gy[x]));
       const int g = ax + ay;
-      m[x] = static_cast<std::uint16_t>(g >= threshold ? g : 0);
-      d[x] = static_cast<std::uint8_t>(ax >= ay);
+      p[x] = static_cast<std::uint16_t>((g >= threshold ? g : 0) | (ax >= ay ? kDirBit : 0));
     }
-    m[0] = m[cols - 1] = 0;  // the walk never steps onto the border, so its neighbours are always inside
+    p[0] = p[cols - 1] = 0;  // the walk never steps onto the border, so its neighbours are always inside
   }
-  std::fill_n(mag_.ptr<std::uint16_t>(0), cols, 0);
-  std::fill_n(mag_.ptr<std::uint16_t>(rows - 1), cols, 0);
+  std::fill_n(px_.ptr<std::uint16_t>(0), cols, 0);
+  std::fill_n(px_.ptr<std::uint16_t>(rows - 1), cols, 0);
 }
 
 void EdgeDrawing::link() {
-  const int rows = mag_.rows, cols = mag_.cols;
+  const int rows = px_.rows, cols = px_.cols;
   const int step = std::max(1, options_.scan_interval), A = options_.anchor_threshold;
   anchors_.clear();
   int max_mag = 0;
@@ -97,16 +94,15 @@ void EdgeDrawing::link() {
   std::uint8_t* ridge = ridge_.data();
   std::fill_n(ridge + cols, 8, 0);  // the tail read by the word scan (a wider previous image may have set it)
   for (int y = 1; y < rows - 1; y += step) {
-    const std::uint16_t* m = mag_.ptr<std::uint16_t>(y);
-    const std::uint16_t* up = mag_.ptr<std::uint16_t>(y - 1);
-    const std::uint16_t* dn = mag_.ptr<std::uint16_t>(y + 1);
-    const std::uint8_t* d = dir_.ptr<std::uint8_t>(y);
+    const std::uint16_t* m = px_.ptr<std::uint16_t>(y);
+    const std::uint16_t* up = px_.ptr<std::uint16_t>(y - 1);
+    const std::uint16_t* dn = px_.ptr<std::uint16_t>(y + 1);
     // Branch-free ridge test over the row (vectorised by the compiler), then a sparse pass over the hits.
     for (int x = 1; x < cols - 1; ++x) {
-      const int g = m[x];
-      const bool across_x = (g - m[x - 1] >= A) & (g - m[x + 1] >= A);
-      const bool across_y = (g - up[x] >= A) & (g - dn[x] >= A);
-      ridge[x] = static_cast<std::uint8_t>((g != 0) & (d[x] ? across_x : across_y));
+      const int g = m[x] & kMagMask;
+      const bool across_x = (g - (m[x - 1] & kMagMask) >= A) & (g - (m[x + 1] & kMagMask) >= A);
+      const bool across_y = (g - (up[x] & kMagMask) >= A) & (g - (dn[x] & kMagMask) >= A);
+      ridge[x] = static_cast<std::uint8_t>((g != 0) & ((m[x] & kDirBit) ? across_x : across_y));
     }
     ridge[0] = ridge[cols - 1] = 0;
     // ridge[] holds 0 / 1 bytes, so each hit is the lowest set bit of its byte: walk the set bits of each 8-byte
@@ -120,32 +116,28 @@ void EdgeDrawing::link() {
         word &= word - 1;
         if (step > 1 && k % step != 0) continue;
         anchors_.push_back(y * cols + k);
-        max_mag = std::max(max_mag, static_cast<int>(m[k]));
+        max_mag = std::max(max_mag, m[k] & kMagMask);
       }
     }
   }
   // Strongest anchors first (counting sort on the magnitude): chains grow from the clearest edges.
   bucket_start_.assign(static_cast<std::size_t>(max_mag) + 2, 0);
-  const std::uint16_t* mag = mag_.ptr<std::uint16_t>(0);
-  for (int a : anchors_) ++bucket_start_[max_mag - mag[a] + 1];
+  std::uint16_t* px = px_.ptr<std::uint16_t>(0);
+  for (int a : anchors_) ++bucket_start_[max_mag - (px[a] & kMagMask) + 1];
   for (std::size_t i = 1; i < bucket_start_.size(); ++i) bucket_start_[i] += bucket_start_[i - 1];
   sorted_.resize(anchors_.size());
-  for (int a : anchors_) sorted_[bucket_start_[max_mag - mag[a]]++] = a;
+  for (int a : anchors_) sorted_[bucket_start_[max_mag - (px[a] & kMagMask)]++] = a;
 
-  edge_.create(rows, cols, CV_8U);
-  edge_.setTo(0);
-  const std::uint8_t* dir = dir_.ptr<std::uint8_t>(0);
-  std::uint8_t* edge = edge_.ptr<std::uint8_t>(0);
   const std::size_t min_chain = static_cast<std::size_t>(std::max(2, options_.min_line_px));
   // The chains of the previous image are reused in place (their memory kept): no allocation per chain once warm.
   std::size_t n_chains = 0;
   for (int a : sorted_) {
-    if (edge[a]) continue;
+    if (px[a] & kEdgeBit) continue;
     const int x = a % cols, y = a / cols;
-    edge[a] = 1;
+    px[a] |= kEdgeBit;
     left_.clear();
     right_.clear();
-    if (dir[a]) {  // vertical edge: walk up and down
+    if (px[a] & kDirBit) {  // vertical edge: walk up and down
       walk(x, y, 0, -1, &left_);
       walk(x, y, 0, 1, &right_);
     } else {
@@ -164,36 +156,33 @@ void EdgeDrawing::link() {
 }
 
 void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out) {
-  const int cols = mag_.cols;
-  const std::uint16_t* mag = mag_.ptr<std::uint16_t>(0);
-  const std::uint8_t* dir = dir_.ptr<std::uint8_t>(0);
-  std::uint8_t* edge = edge_.ptr<std::uint8_t>(0);
+  const int cols = px_.cols;
+  std::uint16_t* px = px_.ptr<std::uint16_t>(0);
+  const auto mag = [px](int i) { return px[i] & kMagMask; };
   for (;;) {
-    // The three pixels ahead: straight on first, so that it wins ties.
-    int best = -1, best_g = 0, best_side = 0, bx = 0, by = 0;
-    for (int side : {0, -1, 1}) {
-      const int nx = x + dx + (dx == 0 ? side : 0), ny = y + dy + (dy == 0 ? side : 0);
-      const int i = ny * cols + nx;
-      if (mag[i] > best_g) {
-        best_g = mag[i];
-        best = i;
-        best_side = side;
-        bx = nx;
-        by = ny;
-      }
-    }
-    if (best < 0 || edge[best]) return;  // below threshold, or ran into a chain already drawn
-    x = bx;
-    y = by;
-    edge[best] = 1;
+    // The three pixels ahead: straight on first, so that it wins ties, then side -1, then side +1 (a later one wins
+    // only when strictly stronger). Selected without branches: which neighbour wins is unpredictable.
+    const int ahead = (y + dy) * cols + (x + dx);
+    const int across = dx == 0 ? 1 : cols;  // one step sideways
+    const int g0 = mag(ahead), gm = mag(ahead - across), gp = mag(ahead + across);
+    int best_side = 0, best_g = g0;
+    best_side = gm > best_g ? -1 : best_side;
+    best_g = std::max(best_g, gm);
+    best_side = gp > best_g ? 1 : best_side;
+    best_g = std::max(best_g, gp);
+    const int best = ahead + best_side * across;
+    if (best_g == 0 || (px[best] & kEdgeBit)) return;  // below threshold, or ran into a chain already drawn
+    x += dx + (dx == 0 ? best_side : 0);
+    y += dy + (dy == 0 ? best_side : 0);
+    px[best] |= kEdgeBit;
     out->emplace_back(x, y);
     // The edge turned: continue along its new orientation, away from where the step came from.
-    const bool vertical = dir[best] != 0;
+    const bool vertical = (px[best] & kDirBit) != 0;
     if (vertical && dx != 0) {
-      dy = best_side != 0 ? best_side : (mag[best - cols] >= mag[best + cols] ? -1 : 1);
+      dy = best_side != 0 ? best_side : (mag(best - cols) >= mag(best + cols) ? -1 : 1);
       dx = 0;
     } else if (!vertical && dy != 0) {
-      dx = best_side != 0 ? best_side : (mag[best - 1] >= mag[best + 1] ? -1 : 1);
+      dx = best_side != 0 ? best_side : (mag(best - 1) >= mag(best + 1) ? -1 : 1);
       dy = 0;
     }
   }

@@ -113,6 +113,8 @@ struct SolverOptions {
   int max_num_iterations = 3;        // solver iterations per frame (the IMU prediction is a good start; full V1_02
                                      // replay: 3 vs 5 gives the same APE for ~15% less CPU)
   double max_solver_time_s = 0.5;    // solver wall-time bound per frame, s (must not bind for bit-identical runs)
+  double function_tolerance = 1e-6;  // schur_lm: the frame's iterations stop once a step lowers the cost by less than
+                                     // this share of it
   std::string trust_region = "dogleg";   // Ceres: "levenberg_marquardt" | "dogleg"
   std::string linear_solver = "dense_schur";  // Ceres: "dense_schur" | "sparse_normal_cholesky"
   double focal_length = 460.0;       // pixels per normalised unit: sqrt_info = focal_length / pixel_sigma
@@ -132,6 +134,7 @@ struct SolverOptions {
     v.choice("engine", engine, "per-frame window solver", {"schur_lm", "ceres"});
     v("max_num_iterations", max_num_iterations, "solver iterations per frame", 1, 1000);
     v("max_solver_time_s", max_solver_time_s, "solver time bound per frame, s", 0.001, 100.0);
+    v("function_tolerance", function_tolerance, "relative cost decrease that ends the frame's iterations", 0.0, 1.0);
     v.choice("trust_region", trust_region, "Ceres trust-region strategy", {"levenberg_marquardt", "dogleg"});
     v.choice("linear_solver", linear_solver, "Ceres linear solver", {"dense_schur", "sparse_normal_cholesky"});
     v("focal_length", focal_length, "pixels per normalised unit", 1.0, 10000.0);

@@ -45,9 +45,11 @@ class EdgeDrawing {
 
   EdgeDrawingOptions options_;
   cv::Mat smooth_, gx_, gy_;
-  cv::Mat mag_;    // CV_16U, |gx| + |gy|, 0 below gradient_threshold and on the 1-pixel border
-  cv::Mat dir_;    // CV_8U, 1 where the edge runs vertically (|gx| >= |gy|), 0 where it runs horizontally
-  cv::Mat edge_;   // CV_8U, 1 on pixels already linked into a chain
+  // CV_16U, one word per pixel so that a step of the walk reads one array: bits 0-11 |gx| + |gy| (at most 2040; 0
+  // below gradient_threshold and on the 1-pixel border), kDirBit where the edge runs vertically (|gx| >= |gy|),
+  // kEdgeBit once the pixel is linked into a chain.
+  cv::Mat px_;
+  static constexpr std::uint16_t kMagMask = 0x0FFF, kDirBit = 0x4000, kEdgeBit = 0x8000;
   std::vector<std::uint8_t> ridge_;  // one row of the ridge test
   std::vector<int> anchors_;      // y * cols + x
   std::vector<int> bucket_start_;
