@@ -160,8 +160,8 @@ LbdDescriptor binarizeLbd(const std::array<float, kLbdFloats>& f) {
   LbdDescriptor desc{0, 0, 0, 0};
   int bit = 0;
   for (const auto& [a, b] : kPairs)
-    for (int c = 0; c < 8; ++c, ++bit)
-      if (f[a * 8 + c] > f[b * 8 + c]) desc[bit >> 6] |= (std::uint64_t{1} << (bit & 63));
+    for (int c = 0; c < 8; ++c, ++bit)  // branch-free: the comparisons' outcomes are unpredictable
+      desc[bit >> 6] |= static_cast<std::uint64_t>(f[a * 8 + c] > f[b * 8 + c]) << (bit & 63);
   return desc;
 }
 
