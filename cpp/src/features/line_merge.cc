@@ -36,6 +36,10 @@ int mergeSegments(const LineMergeOptions& options, const SegmentDescriber& descr
     std::iota(order.begin(), order.end(), 0);
     std::stable_sort(order.begin(), order.end(),
                      [&](int a, int b) { return (*segments)[a].length() > (*segments)[b].length(); });
+    // Directions computed once: a segment changes only while it is the absorbing one (a below), and by then every
+    // segment it is compared with comes later in the order and is still as detected.
+    std::vector<Vec2> dirs(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) dirs[static_cast<std::size_t>(k)] = (*segments)[k].direction();
     for (int oi = 0; oi < n; ++oi) {
       const int i = order[oi];
       if (!alive[i]) continue;
@@ -50,7 +54,7 @@ int mergeSegments(const LineMergeOptions& options, const SegmentDescriber& descr
           const int j = order[oj];
           if (!alive[j]) continue;
           const LineSegment& b = (*segments)[j];
-          if (b.direction().dot(d) < cos_max) continue;
+          if (dirs[static_cast<std::size_t>(j)].dot(d) < cos_max) continue;
           if (std::abs((b.s - a.s).dot(nrm)) > options.max_perpendicular_px ||
               std::abs((b.e - a.s).dot(nrm)) > options.max_perpendicular_px)
             continue;
