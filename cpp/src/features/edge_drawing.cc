@@ -65,8 +65,7 @@ void EdgeDrawing::gradient(const cv::Mat& gray) {
     cv::GaussianBlur(gray, smooth_, cv::Size(k, k), options_.sigma, options_.sigma, cv::BORDER_REPLICATE);
     src = &smooth_;
   }
-  cv::Sobel(*src, gx_, CV_16S, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
-  cv::Sobel(*src, gy_, CV_16S, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::spatialGradient(*src, gx_, gy_, 3, cv::BORDER_REPLICATE);  // both 3x3 Sobel derivatives in one pass
   const int rows = gray.rows, cols = gray.cols;
   px_.create(rows, cols, CV_16U);
   const int threshold = options_.gradient_threshold;

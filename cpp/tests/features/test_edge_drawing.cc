@@ -228,5 +228,16 @@ TEST(EdgeDrawing, ReusedDetectorGivesWhatAFreshOneGives) {
   EXPECT_EQ(reused.chains(), fresh.chains());
 }
 
+TEST(EdgeDrawing, OnePassGradientEqualsTheTwoSobelFilters) {
+  // gradient() relies on cv::spatialGradient giving exactly the two 3x3 Sobel derivatives (replicated border).
+  const cv::Mat img = clutter(97, 131, 5);
+  cv::Mat gx, gy, sx, sy;
+  cv::spatialGradient(img, gx, gy, 3, cv::BORDER_REPLICATE);
+  cv::Sobel(img, sx, CV_16S, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(img, sy, CV_16S, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  EXPECT_EQ(cv::countNonZero(gx != sx), 0);
+  EXPECT_EQ(cv::countNonZero(gy != sy), 0);
+}
+
 }  // namespace
 }  // namespace linnet
