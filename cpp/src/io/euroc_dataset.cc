@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <string_view>
 #include <unordered_set>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -314,9 +316,22 @@ bool EurocDataset::groundTruthAt(Timestamp t, GroundTruthState* state, Timestamp
 cv::Mat EurocDataset::loadImage(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) io::failInput(path, 0, "image file not found");
+  // The whole file in one read, then decoded from memory: cv::imread's decoder pulls the file through small
+  // buffered reads, whose system calls cost as much as the decoding of an uncompressed PNG.
+  std::vector<unsigned char> bytes;
+  {
+    std::ifstream file(path, std::ios::binary | std::ios::ate);
+    const std::streamoff size = file ? static_cast<std::streamoff>(file.tellg()) : -1;
+    if (size < 0) io::failInput(path, 0, "cannot read image file");
+    bytes.resize(static_cast<std::size_t>(size));
+    file.seekg(0);
+    if (size > 0 && !file.read(reinterpret_cast<char*>(bytes.data()), size))
+      io::failInput(path, 0, "cannot read image file");
+  }
+  if (bytes.empty()) io::failInput(path, 0, "cannot decode image (empty file)");
   cv::Mat img;
   try {
-    img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    img = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
   } catch (const cv::Exception& e) {
     io::failInput(path, 0, std::string("cannot decode image: ") + e.what());
   }

@@ -5,6 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
 #include "io_test_util.h"
 #include "linnet/core/error.h"
 #include "linnet/io/euroc_dataset.h"
@@ -288,6 +291,29 @@ TEST(EurocDataset, LoadImageErrorsNameTheFile) {
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("corrupt.png: cannot decode image"), std::string::npos) << e.what();
+  }
+  writeAll(dir / "empty.png", "");
+  try {
+    EurocDataset::loadImage((dir / "empty.png").string());
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("empty.png: cannot decode image (empty file)"), std::string::npos)
+        << e.what();
+  }
+  // A valid PNG cut in half (the file is read whole, then decoded from memory).
+  cv::Mat img(48, 64, CV_8UC1);
+  cv::randu(img, 0, 256);
+  std::vector<unsigned char> png;
+  ASSERT_TRUE(cv::imencode(".png", img, png));
+  writeAll(dir / "whole.png", std::string(png.begin(), png.end()));
+  const cv::Mat back = EurocDataset::loadImage((dir / "whole.png").string());
+  EXPECT_EQ(cv::countNonZero(back != img), 0);
+  writeAll(dir / "half.png", std::string(png.begin(), png.begin() + static_cast<std::ptrdiff_t>(png.size() / 2)));
+  try {
+    EurocDataset::loadImage((dir / "half.png").string());
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("half.png: cannot decode image"), std::string::npos) << e.what();
   }
 }
 
