@@ -181,6 +181,9 @@ void SchurLmSolver::prepare() {
   g_.setZero(reduced_size_);
   g_e_.setZero(eliminated_size_);
   plus_jacobians_.resize(blocks_.size());
+  block_of_row_.resize(static_cast<std::size_t>(reduced_size_));
+  for (const Block& b : blocks_)
+    if (!b.eliminate) std::fill_n(block_of_row_.begin() + b.offset, b.tangent, b.offset);
   prepared_ = true;
 }
 
@@ -277,10 +280,10 @@ double SchurLmSolver::evaluate(bool linearise) {
           g_e_.segment(lm->offset, lm->size).noalias() += Ja.transpose() * r;
         for (std::size_t b = 0; b < nb; ++b) {
           if (res_slots[b] < 0) continue;
-          MatMap Hek = this->Hek(*lm, res_slots[b]);
+          MatMap H_ek = Hek(*lm, res_slots[b]);
           const Map Jb = tangent(b);
-          if (!addJtJFixed(rows, ba.tangent, static_cast<int>(Jb.cols()), Hek.data(), Hek.rows(), Ja.data(), Jb.data()))
-            Hek.noalias() += Ja.transpose() * Jb;
+          if (!addJtJFixed(rows, ba.tangent, static_cast<int>(Jb.cols()), H_ek.data(), H_ek.rows(), Ja.data(), Jb.data()))
+            H_ek.noalias() += Ja.transpose() * Jb;
         }
         continue;
       }
@@ -302,9 +305,6 @@ double SchurLmSolver::evaluate(bool linearise) {
     // halved back.
     // In place (no temporary): each pair (r, c), r < c, gets the same sum on both sides; inside a diagonal block
     // that sum is halved, as 0.5 (A + A^T) there. The diagonal entries keep their value (2x, then halved: exact).
-    block_of_row_.resize(static_cast<std::size_t>(reduced_size_));
-    for (const Block& b : blocks_)
-      if (!b.eliminate) std::fill_n(block_of_row_.begin() + b.offset, b.tangent, b.offset);
     for (Eigen::Index c = 0; c < reduced_size_; ++c)
       for (Eigen::Index r = 0; r < c; ++r) {
         double v = H_(r, c) + H_(c, r);

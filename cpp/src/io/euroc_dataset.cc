@@ -323,12 +323,11 @@ cv::Mat EurocDataset::loadImage(const std::string& path) {
     std::ifstream file(path, std::ios::binary | std::ios::ate);
     const std::streamoff size = file ? static_cast<std::streamoff>(file.tellg()) : -1;
     if (size < 0) io::failInput(path, 0, "cannot read image file");
+    if (size == 0) io::failInput(path, 0, "cannot decode image (empty file)");
     bytes.resize(static_cast<std::size_t>(size));
     file.seekg(0);
-    if (size > 0 && !file.read(reinterpret_cast<char*>(bytes.data()), size))
-      io::failInput(path, 0, "cannot read image file");
+    if (!file.read(reinterpret_cast<char*>(bytes.data()), size)) io::failInput(path, 0, "cannot read image file");
   }
-  if (bytes.empty()) io::failInput(path, 0, "cannot decode image (empty file)");
   cv::Mat img;
   try {
     img = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);

@@ -137,7 +137,7 @@ class SchurLmSolver {
   Eigen::MatrixXd H_;  // reduced-size dense J^T J of the kept blocks (upper and lower filled)
   Eigen::VectorXd g_;  // J^T r of the kept blocks
   Eigen::VectorXd g_e_;  // J^T r of the eliminated blocks, stacked
-  std::vector<int> block_of_row_;  // offset of the kept block each row of H_ belongs to (symmetrisation)
+  std::vector<int> block_of_row_;  // per row of H_: offset of its kept block (set by prepare, used to symmetrise)
   std::vector<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> plus_jacobians_;
   std::vector<double> arena_;  // per-residual scratch (residual and Jacobians), allocated once per problem
   std::vector<double*> param_ptrs_, jacobian_ptrs_;  // scratch for CostFunction::Evaluate
