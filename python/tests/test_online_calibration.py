@@ -31,22 +31,22 @@ def test_time_offset_is_recovered_with_the_default_config(offset_replay, tmp_pat
     assert s["status"] == "ok", s["problems"]
     assert s["reinitialisations"] == 0
     assert abs(s["time_offset_ms"] - OFFSET_MS) < 1.0, s["time_offset_ms"]
-    assert "extrinsics_correction" not in s  # off by default
     assert result["summary"]["time_offset_ms"] == s["time_offset_ms"]
-
-
-def test_extrinsics_correction_is_reported(offset_replay, tmp_path):
-    import linnet
-
-    from linnet.api import load_config
-
-    config = load_config(offset_replay, overrides=["estimator.extrinsics.estimate=true"])
-    linnet.run_dataset(offset_replay, config, out=tmp_path)
-    s = json.loads((tmp_path / "summary.json").read_text())
-    assert s["status"] == "ok", s["problems"]
+    # The rig's extrinsics are refined by default too. The replay's calibration is exact: the correction stays small.
     c = s["extrinsics_correction"]
     T = np.array(c["T_B_R"])
     assert T.shape == (4, 4)
     np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9)
-    # The replay's calibration is exact: the correction stays small.
     assert c["rotation_deg"] < 0.3 and c["translation_m"] < 0.01, c
+
+
+def test_extrinsics_correction_is_absent_when_off(offset_replay, tmp_path):
+    import linnet
+
+    from linnet.api import load_config
+
+    config = load_config(offset_replay, overrides=["estimator.extrinsics.estimate=false"])
+    linnet.run_dataset(offset_replay, config, out=tmp_path)
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["status"] == "ok", s["problems"]
+    assert "extrinsics_correction" not in s
