@@ -98,9 +98,9 @@ void EdgeDrawing::link() {
     const std::uint16_t* dn = px_.ptr<std::uint16_t>(y + 1);
     // Branch-free ridge test over the row (vectorised by the compiler), then a sparse pass over the hits.
     for (int x = 1; x < cols - 1; ++x) {
-      const int g = m[x] & kMagMask;
-      const bool across_x = (g - (m[x - 1] & kMagMask) >= A) & (g - (m[x + 1] & kMagMask) >= A);
-      const bool across_y = (g - (up[x] & kMagMask) >= A) & (g - (dn[x] & kMagMask) >= A);
+      const int g = magnitude(m[x]);
+      const bool across_x = (g - magnitude(m[x - 1]) >= A) & (g - magnitude(m[x + 1]) >= A);
+      const bool across_y = (g - magnitude(up[x]) >= A) & (g - magnitude(dn[x]) >= A);
       ridge[x] = static_cast<std::uint8_t>((g != 0) & ((m[x] & kDirBit) ? across_x : across_y));
     }
     ridge[0] = ridge[cols - 1] = 0;
@@ -115,17 +115,17 @@ void EdgeDrawing::link() {
         word &= word - 1;
         if (step > 1 && k % step != 0) continue;
         anchors_.push_back(y * cols + k);
-        max_mag = std::max(max_mag, m[k] & kMagMask);
+        max_mag = std::max(max_mag, magnitude(m[k]));
       }
     }
   }
   // Strongest anchors first (counting sort on the magnitude): chains grow from the clearest edges.
   bucket_start_.assign(static_cast<std::size_t>(max_mag) + 2, 0);
   std::uint16_t* px = px_.ptr<std::uint16_t>(0);
-  for (int a : anchors_) ++bucket_start_[max_mag - (px[a] & kMagMask) + 1];
+  for (int a : anchors_) ++bucket_start_[max_mag - magnitude(px[a]) + 1];
   for (std::size_t i = 1; i < bucket_start_.size(); ++i) bucket_start_[i] += bucket_start_[i - 1];
   sorted_.resize(anchors_.size());
-  for (int a : anchors_) sorted_[bucket_start_[max_mag - (px[a] & kMagMask)]++] = a;
+  for (int a : anchors_) sorted_[bucket_start_[max_mag - magnitude(px[a])]++] = a;
 
   const std::size_t min_chain = static_cast<std::size_t>(std::max(2, options_.min_line_px));
   // The chains of the previous image are reused in place (their memory kept): no allocation per chain once warm.
@@ -157,13 +157,12 @@ void EdgeDrawing::link() {
 void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out) {
   const int cols = px_.cols;
   std::uint16_t* px = px_.ptr<std::uint16_t>(0);
-  const auto mag = [px](int i) { return px[i] & kMagMask; };
   for (;;) {
     // The three pixels ahead: straight on first, so that it wins ties, then side -1, then side +1 (a later one wins
     // only when strictly stronger). Selected without branches: which neighbour wins is unpredictable.
     const int ahead = (y + dy) * cols + (x + dx);
     const int across = dx == 0 ? 1 : cols;  // one step sideways
-    const int g0 = mag(ahead), gm = mag(ahead - across), gp = mag(ahead + across);
+    const int g0 = magnitude(px[ahead]), gm = magnitude(px[ahead - across]), gp = magnitude(px[ahead + across]);
     int best_side = 0, best_g = g0;
     best_side = gm > best_g ? -1 : best_side;
     best_g = std::max(best_g, gm);
@@ -178,10 +177,10 @@ void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out
     // The edge turned: continue along its new orientation, away from where the step came from.
     const bool vertical = (px[best] & kDirBit) != 0;
     if (vertical && dx != 0) {
-      dy = best_side != 0 ? best_side : (mag(best - cols) >= mag(best + cols) ? -1 : 1);
+      dy = best_side != 0 ? best_side : (magnitude(px[best - cols]) >= magnitude(px[best + cols]) ? -1 : 1);
       dx = 0;
     } else if (!vertical && dy != 0) {
-      dx = best_side != 0 ? best_side : (mag(best - 1) >= mag(best + 1) ? -1 : 1);
+      dx = best_side != 0 ? best_side : (magnitude(px[best - 1]) >= magnitude(px[best + 1]) ? -1 : 1);
       dy = 0;
     }
   }

@@ -50,6 +50,7 @@ class EdgeDrawing {
   // kEdgeBit once the pixel is linked into a chain.
   cv::Mat px_;
   static constexpr std::uint16_t kMagMask = 0x0FFF, kDirBit = 0x4000, kEdgeBit = 0x8000;
+  static int magnitude(std::uint16_t word) { return word & kMagMask; }
   std::vector<std::uint8_t> ridge_;  // one row of the ridge test
   std::vector<int> anchors_;      // y * cols + x
   std::vector<int> bucket_start_;
