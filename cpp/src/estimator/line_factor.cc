@@ -52,22 +52,30 @@ bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* 
   return true;
 }
 
-bool LineReprojectionFactor::Evaluate(double const* const* parameters, double* residuals,
-                                      double** jacobians) const {
-  const Pose T_W_B = poseFromBlock(parameters[0]);
-  const Vec6 L = Eigen::Map<const Vec6>(parameters[1]);
+bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
+                                                  double** jacobians) const {
   const bool want_pose = jacobians != nullptr && jacobians[0] != nullptr;
   const bool want_line = jacobians != nullptr && jacobians[1] != nullptr;
   Vec2 r;
   Eigen::Matrix<double, 2, 6> Jp, Jl;
-  if (!evaluate(T_W_B, L, &r, want_pose ? &Jp : nullptr, want_line ? &Jl : nullptr)) return false;
+  if (!evaluate(poseFromBlock(parameters[0]), Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
+                want_line ? &Jl : nullptr))
+    return false;
   residuals[0] = r.x();
   residuals[1] = r.y();
-  if (want_pose) tangentToAmbientPose<2>(Jp, parameters[0], jacobians[0]);
-  if (want_line) {
-    Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>> J(jacobians[1]);
-    J = Jl;
-  }
+  using RowMajor26 = Eigen::Matrix<double, 2, 6, Eigen::RowMajor>;
+  if (want_pose) Eigen::Map<RowMajor26>{jacobians[0]} = Jp;
+  if (want_line) Eigen::Map<RowMajor26>{jacobians[1]} = Jl;
+  return true;
+}
+
+bool LineReprojectionFactor::Evaluate(double const* const* parameters, double* residuals,
+                                      double** jacobians) const {
+  const bool want_pose = jacobians != nullptr && jacobians[0] != nullptr;
+  Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
+  double* tangent[2] = {want_pose ? Jp.data() : nullptr, jacobians != nullptr ? jacobians[1] : nullptr};
+  if (!evaluateTangentSpace(parameters, residuals, jacobians != nullptr ? tangent : nullptr)) return false;
+  if (want_pose) tangentToAmbientPose<2>(Eigen::Matrix<double, 2, 6>(Jp), parameters[0], jacobians[0]);
   return true;
 }
 

@@ -63,27 +63,38 @@ bool PointReprojectionFactor::evaluateTangent(const Pose& T_W_Bi, const Pose& T_
   return true;
 }
 
-bool PointReprojectionFactor::Evaluate(double const* const* parameters, double* residuals,
-                                       double** jacobians) const {
-  const Pose T_W_Bi = poseFromBlock(parameters[0]);
-  const Pose T_W_Bj = poseFromBlock(parameters[1]);
-  const double inv_depth = parameters[2][0];
+bool PointReprojectionFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
+                                                   double** jacobians) const {
   const bool want_i = jacobians != nullptr && jacobians[0] != nullptr;
   const bool want_j = jacobians != nullptr && jacobians[1] != nullptr;
   const bool want_rho = jacobians != nullptr && jacobians[2] != nullptr;
   Vec2 r, J_rho;
   Eigen::Matrix<double, 2, 6> J_i, J_j;
-  if (!evaluateTangent(T_W_Bi, T_W_Bj, inv_depth, &r, want_i ? &J_i : nullptr, want_j ? &J_j : nullptr,
-                       want_rho ? &J_rho : nullptr))
+  if (!evaluateTangent(poseFromBlock(parameters[0]), poseFromBlock(parameters[1]), parameters[2][0], &r,
+                       want_i ? &J_i : nullptr, want_j ? &J_j : nullptr, want_rho ? &J_rho : nullptr))
     return false;
   residuals[0] = r.x();
   residuals[1] = r.y();
-  if (want_i) tangentToAmbientPose<2>(J_i, parameters[0], jacobians[0]);
-  if (want_j) tangentToAmbientPose<2>(J_j, parameters[1], jacobians[1]);
+  using Tangent = Eigen::Matrix<double, 2, 6, Eigen::RowMajor>;
+  if (want_i) Eigen::Map<Tangent>{jacobians[0]} = J_i;
+  if (want_j) Eigen::Map<Tangent>{jacobians[1]} = J_j;
   if (want_rho) {
     jacobians[2][0] = J_rho.x();
     jacobians[2][1] = J_rho.y();
   }
+  return true;
+}
+
+bool PointReprojectionFactor::Evaluate(double const* const* parameters, double* residuals,
+                                       double** jacobians) const {
+  const bool want_i = jacobians != nullptr && jacobians[0] != nullptr;
+  const bool want_j = jacobians != nullptr && jacobians[1] != nullptr;
+  Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_i, J_j;
+  double* tangent[3] = {want_i ? J_i.data() : nullptr, want_j ? J_j.data() : nullptr,
+                        jacobians != nullptr ? jacobians[2] : nullptr};
+  if (!evaluateTangentSpace(parameters, residuals, jacobians != nullptr ? tangent : nullptr)) return false;
+  if (want_i) tangentToAmbientPose<2>(Eigen::Matrix<double, 2, 6>(J_i), parameters[0], jacobians[0]);
+  if (want_j) tangentToAmbientPose<2>(Eigen::Matrix<double, 2, 6>(J_j), parameters[1], jacobians[1]);
   return true;
 }
 

@@ -16,6 +16,7 @@ constexpr int kMaxRows = 4;
 constexpr int kMaxBlocks = 8;
 using AmbientJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseAmbientSize, Eigen::RowMajor, kMaxRows, kPoseAmbientSize>;
 using TangentJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseTangentSize, Eigen::RowMajor, kMaxRows, kPoseTangentSize>;
+using TangentMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
 
 /// Writes the ambient (rows x 7, row-major) Jacobian of a pose block from its tangent one (as tangentToAmbientPose).
 void poseTangentToAmbient(const TangentJ& J_t, const double* pose, double* out) {
@@ -28,10 +29,13 @@ void poseTangentToAmbient(const TangentJ& J_t, const double* pose, double* out) 
 PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
                                      int extra_size, bool extra_is_pose)
     : inner_(std::move(inner)),
+      inner_tangent_(dynamic_cast<const TangentJacobians*>(inner_.get())),
       pose_blocks_(std::move(pose_blocks)),
       extra_tangent_(extra_is_pose ? kPoseTangentSize : extra_size),
       extra_is_pose_(extra_is_pose) {
   if (extra_is_pose && extra_size != kPoseAmbientSize) throw UsageError("PoseWrappedFactor: a pose block has 7 values");
+  if (inner_tangent_ == nullptr)
+    throw UsageError("PoseWrappedFactor: the inner factor gives no tangent-space Jacobians (TangentJacobians)");
   if (static_cast<int>(pose_blocks_.size()) > kMaxPoses || inner_->num_residuals() > kMaxRows ||
       static_cast<int>(inner_->parameter_block_sizes().size()) >= kMaxBlocks || extra_tangent_ > kPoseTangentSize)
     throw UsageError("PoseWrappedFactor: a visual residual has at most 2 poses, 4 rows and 7 blocks");
@@ -41,77 +45,93 @@ PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner,
   sizes->push_back(extra_size);
 }
 
-bool PoseWrappedFactor::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
+                                             double** jacobians) const {
   const int n_inner = static_cast<int>(inner_->parameter_block_sizes().size());
   const int rows = num_residuals();
   const double* extra = parameters[n_inner];
   const std::size_t n_poses = pose_blocks_.size();
 
-  // Inner parameters with the body poses replaced by the transformed poses.
+  // Inner parameters with the body poses replaced by the transformed poses (and their derivatives when wanted).
   std::array<std::array<double, kPoseAmbientSize>, kMaxPoses> moved;
   std::array<Mat6, kMaxPoses> d_body;
   std::array<ExtraMap, kMaxPoses> d_extra;
   std::array<const double*, kMaxBlocks> inner_params{};
   std::copy(parameters, parameters + n_inner, inner_params.begin());
   for (std::size_t k = 0; k < n_poses; ++k) {
-    d_extra[k].resize(6, extra_tangent_);
-    const Pose T = transform(k, poseFromBlock(parameters[pose_blocks_[k]]), extra, &d_body[k], &d_extra[k]);
+    if (jacobians != nullptr) d_extra[k].resize(6, extra_tangent_);
+    const Pose T = transform(k, poseFromBlock(parameters[pose_blocks_[k]]), extra,
+                             jacobians != nullptr ? &d_body[k] : nullptr, jacobians != nullptr ? &d_extra[k] : nullptr);
     setPose(T, moved[k].data());
     inner_params[static_cast<std::size_t>(pose_blocks_[k])] = moved[k].data();
   }
-  if (jacobians == nullptr) return inner_->Evaluate(inner_params.data(), residuals, nullptr);
+  if (jacobians == nullptr) return inner_tangent_->evaluateTangentSpace(inner_params.data(), residuals, nullptr);
 
+  // Inner Jacobians: straight into the output for the other blocks, into J_t for the transformed poses.
   const bool want_extra = jacobians[n_inner] != nullptr;
-  // Inner Jacobians: straight into the output for the other blocks, into scratch for the poses.
-  std::array<AmbientJ, kMaxPoses> scratch;
+  std::array<TangentJ, kMaxPoses> J_t;
   std::array<double*, kMaxBlocks> inner_jac{};
   std::copy(jacobians, jacobians + n_inner, inner_jac.begin());
   for (std::size_t k = 0; k < n_poses; ++k) {
     const auto b = static_cast<std::size_t>(pose_blocks_[k]);
-    scratch[k].resize(rows, kPoseAmbientSize);
-    if (jacobians[b] != nullptr || want_extra) inner_jac[b] = scratch[k].data();
+    J_t[k].resize(rows, kPoseTangentSize);
+    inner_jac[b] = jacobians[b] != nullptr || want_extra ? J_t[k].data() : nullptr;
   }
-  if (!inner_->Evaluate(inner_params.data(), residuals, inner_jac.data())) return false;
+  if (!inner_tangent_->evaluateTangentSpace(inner_params.data(), residuals, inner_jac.data())) return false;
 
+  // Chain rule through the transform: body tangent -> transformed tangent <- extra tangent.
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor, kMaxRows, 6> J_extra =
       Eigen::MatrixXd::Zero(rows, extra_tangent_);
   for (std::size_t k = 0; k < n_poses; ++k) {
     const int b = pose_blocks_[k];
-    if (jacobians[b] == nullptr && !want_extra) continue;
-    // Tangent Jacobian w.r.t. the transformed pose: ambient times PoseManifold's PlusJacobian there.
-    TangentJ J_t(rows, kPoseTangentSize);
-    J_t.leftCols(3) = scratch[k].leftCols(3);
-    J_t.rightCols(3) = scratch[k].rightCols(4) * quatPlusJacobian(poseRotation(moved[k].data()));
-    if (jacobians[b] != nullptr) poseTangentToAmbient(J_t * d_body[k], parameters[b], jacobians[b]);
-    if (want_extra) J_extra += J_t * d_extra[k];
+    if (jacobians[b] != nullptr) TangentMap(jacobians[b], rows, kPoseTangentSize).noalias() = J_t[k] * d_body[k];
+    if (want_extra) J_extra.noalias() += J_t[k] * d_extra[k];
   }
-  if (want_extra) {
-    if (extra_is_pose_) {
-      poseTangentToAmbient(J_extra, extra, jacobians[n_inner]);
-    } else {
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobians[n_inner], rows,
-                                                                                          extra_tangent_) = J_extra;
-    }
+  if (want_extra) TangentMap(jacobians[n_inner], rows, extra_tangent_) = J_extra;
+  return true;
+}
+
+bool PoseWrappedFactor::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+  if (jacobians == nullptr) return evaluateTangentSpace(parameters, residuals, nullptr);
+  // Tangent Jacobians of the pose blocks (every 7-double block) into scratch, converted for Ceres afterwards.
+  const std::vector<int32_t>& sizes = parameter_block_sizes();
+  const int rows = num_residuals();
+  std::array<TangentJ, kMaxBlocks> scratch;
+  std::array<double*, kMaxBlocks> tangent{};
+  for (std::size_t b = 0; b < sizes.size(); ++b) {
+    tangent[b] = jacobians[b];
+    if (jacobians[b] == nullptr || sizes[b] != kPoseAmbientSize) continue;
+    scratch[b].resize(rows, kPoseTangentSize);
+    tangent[b] = scratch[b].data();
   }
+  if (!evaluateTangentSpace(parameters, residuals, tangent.data())) return false;
+  for (std::size_t b = 0; b < sizes.size(); ++b)
+    if (jacobians[b] != nullptr && sizes[b] == kPoseAmbientSize)
+      poseTangentToAmbient(scratch[b], parameters[b], jacobians[b]);
   return true;
 }
 
 RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
                                        const Pose& T_B_R0)
-    : PoseWrappedFactor(std::move(inner), std::move(pose_blocks), kPoseAmbientSize, true), D_(T_B_R0.inverse()) {}
+    : PoseWrappedFactor(std::move(inner), std::move(pose_blocks), kPoseAmbientSize, true),
+      D_(T_B_R0.inverse()),
+      R_D_t_(D_.R().transpose()),
+      skew_t_D_(skew(D_.p)) {}
 
 Pose RigCorrectedFactor::transform(std::size_t /*k*/, const Pose& body, const double* extra, Mat6* d_body,
                                    ExtraMap* d_extra) const {
   const Pose T_B_R = poseFromBlock(extra);
   const Pose M = T_B_R * D_;
-  const Mat3 R_B = body.R();
-  d_body->setIdentity();
-  d_body->topRightCorner<3, 3>() = -R_B * skew(M.p);
-  d_body->bottomRightCorner<3, 3>() = M.R().transpose();
-  d_extra->setZero(6, 6);
-  d_extra->topLeftCorner(3, 3) = R_B;
-  d_extra->topRightCorner(3, 3) = -R_B * T_B_R.R() * skew(D_.p);
-  d_extra->bottomRightCorner(3, 3) = D_.R().transpose();
+  if (d_body != nullptr) {
+    const Mat3 R_B = body.R();
+    d_body->setIdentity();
+    d_body->topRightCorner<3, 3>() = -R_B * skew(M.p);
+    d_body->bottomRightCorner<3, 3>() = M.R().transpose();
+    d_extra->setZero(6, 6);
+    d_extra->topLeftCorner(3, 3) = R_B;
+    d_extra->topRightCorner(3, 3) = -(R_B * T_B_R.R()) * skew_t_D_;
+    d_extra->bottomRightCorner(3, 3) = R_D_t_;
+  }
   return body * M;
 }
 
@@ -125,11 +145,13 @@ Pose TimeShiftedFactor::transform(std::size_t k, const Pose& body, const double*
                                   ExtraMap* d_extra) const {
   const double td = extra[0];
   const Quat E = expSO3(-td * w_B_[k]);
-  d_body->setIdentity();
-  d_body->bottomRightCorner<3, 3>() = E.toRotationMatrix().transpose();
-  d_extra->resize(6, 1);
-  d_extra->topRows(3) = -v_W_[k];
-  d_extra->bottomRows(3) = -w_B_[k];
+  if (d_body != nullptr) {
+    d_body->setIdentity();
+    d_body->bottomRightCorner<3, 3>() = E.toRotationMatrix().transpose();
+    d_extra->resize(6, 1);
+    d_extra->topRows(3) = -v_W_[k];
+    d_extra->bottomRows(3) = -w_B_[k];
+  }
   return Pose(body.q * E, body.p - td * v_W_[k]);
 }
 

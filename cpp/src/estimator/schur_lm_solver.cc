@@ -11,6 +11,7 @@
 #include <Eigen/LU>
 
 #include "linnet/core/error.h"
+#include "linnet/estimator/manifolds.h"
 
 namespace linnet {
 
@@ -69,6 +70,7 @@ void SchurLmSolver::addParameterBlock(double* data, int ambient_size, const cere
   b.tangent = manifold != nullptr ? manifold->TangentSize() : ambient_size;
   b.manifold = manifold;
   b.eliminate = eliminate;
+  b.pose = ambient_size == kPoseAmbientSize && dynamic_cast<const PoseManifold*>(manifold) != nullptr;
   b.offset = -1;
   index_.emplace(data, static_cast<int>(blocks_.size()));
   blocks_.push_back(b);
@@ -84,6 +86,7 @@ void SchurLmSolver::addResidual(const ceres::CostFunction* cost, const ceres::Lo
   Residual r;
   r.cost = cost;
   r.loss = loss;
+  r.tangent = dynamic_cast<const TangentJacobians*>(cost);
   r.rows = cost->num_residuals();
   r.first = static_cast<int>(res_blocks_.size());
   r.count = static_cast<int>(blocks.size());
@@ -218,12 +221,15 @@ double SchurLmSolver::evaluate(bool linearise) {
     for (std::size_t k = 0; k < nb; ++k) {
       const Block& b = blocks_[static_cast<std::size_t>(res_blocks[k])];
       param_ptrs_[k] = b.data;
-      J_ptrs[k] = p;  // ambient Jacobian, then the tangent one
+      // Scratch: ambient Jacobian, then the tangent one (where a TangentJacobians factor writes a pose's directly).
+      J_ptrs[k] = p + (res.tangent != nullptr && b.pose ? static_cast<std::ptrdiff_t>(rows) * b.ambient : 0);
       p += static_cast<std::ptrdiff_t>(rows) * (b.ambient + b.tangent);
     }
     const double* const* params = param_ptrs_.data();
-    if (!res.cost->Evaluate(params, scratch, linearise ? J_ptrs : nullptr) || !r.allFinite())
-      return std::numeric_limits<double>::infinity();
+    double** jac = linearise ? J_ptrs : nullptr;
+    const bool ok = res.tangent != nullptr ? res.tangent->evaluateTangentSpace(params, scratch, jac)
+                                           : res.cost->Evaluate(params, scratch, jac);
+    if (!ok || !r.allFinite()) return std::numeric_limits<double>::infinity();
     const double s = r.squaredNorm();
     double rho[3] = {s, 1.0, 0.0};
     if (res.loss != nullptr) res.loss->Evaluate(s, rho);
@@ -234,6 +240,7 @@ double SchurLmSolver::evaluate(bool linearise) {
     for (std::size_t k = 0; k < nb; ++k) {
       const std::size_t bi = static_cast<std::size_t>(res_blocks[k]);
       const Block& b = blocks_[bi];
+      if (res.tangent != nullptr && b.pose) continue;  // given in the tangent space
       Map Ja(J_ptrs[k], rows, b.ambient);
       Map Jt(J_ptrs[k] + static_cast<std::ptrdiff_t>(rows) * b.ambient, rows, b.tangent);
       if (b.manifold != nullptr && rows == 2 && b.ambient == 7 && b.tangent == 6)
@@ -249,7 +256,8 @@ double SchurLmSolver::evaluate(bool linearise) {
     }
     const auto tangent = [&](std::size_t k) {
       const Block& b = blocks_[static_cast<std::size_t>(res_blocks[k])];
-      return Map(J_ptrs[k] + static_cast<std::ptrdiff_t>(rows) * b.ambient, rows, b.tangent);
+      const std::ptrdiff_t skip = res.tangent != nullptr && b.pose ? 0 : static_cast<std::ptrdiff_t>(rows) * b.ambient;
+      return Map(J_ptrs[k] + skip, rows, b.tangent);
     };
     // Robustification as Ceres' corrector (Triggs et al. 2000, sec. 4.3): scale r and J so that the Gauss-Newton
     // model of the robust cost matches it to second order.

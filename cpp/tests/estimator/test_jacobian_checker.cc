@@ -8,6 +8,7 @@
 
 #include "imu/imu_test_motion.h"
 #include "linnet/estimator/factors/imu_factor.h"
+#include "linnet/estimator/factors/point_factors.h"
 #include "linnet/estimator/manifolds.h"
 #include "support/jacobian_check.h"
 
@@ -233,6 +234,46 @@ TEST(JacobianChecker, CatchesCorruptionsOfTheRealImuFactor) {
                                << ") not detected:\n"
                                << res.describe();
     EXPECT_GT(res.blocks[static_cast<size_t>(c.block)].max_rel_error, 1e-4);
+  }
+}
+
+/// A point factor whose Ceres path is right and whose tangent-space path (the Schur solver's) has one entry of block
+/// `block` scaled by 1.001.
+class CorruptTangentPath : public ceres::SizedCostFunction<2, 7, 7, 1>, public TangentJacobians {
+ public:
+  CorruptTangentPath(const PointReprojectionFactor& f, int block, int entry) : f_(f), block_(block), entry_(entry) {}
+  bool Evaluate(double const* const* p, double* r, double** J) const override { return f_.Evaluate(p, r, J); }
+  bool evaluateTangentSpace(double const* const* p, double* r, double** J) const override {
+    if (!f_.evaluateTangentSpace(p, r, J)) return false;
+    if (J != nullptr && J[block_] != nullptr) J[block_][entry_] *= 1.0 + 1e-3;
+    return true;
+  }
+
+ private:
+  const PointReprojectionFactor& f_;
+  int block_, entry_;
+};
+
+TEST(JacobianChecker, ChecksTheTangentSpacePathToo) {
+  const Pose T_B_C(expSO3(Vec3(-1.2, 0.1, -1.5)), Vec3(-0.02, -0.06, 0.01));
+  const Pose T_W_Bi(expSO3(Vec3(0.3, -0.2, 0.5)), Vec3(1.0, 2.0, 0.5));
+  const Pose T_W_Bj = T_W_Bi * Pose(expSO3(Vec3(0.02, 0.05, -0.03)), Vec3(0.1, -0.05, 0.02));
+  const Vec2 uv_host(0.1, -0.05);
+  const double depth = 4.0;
+  const Vec3 p_C = (T_W_Bj * T_B_C).inverse() * ((T_W_Bi * T_B_C) * (depth * Vec3(uv_host.x(), uv_host.y(), 1.0)));
+  const PointReprojectionFactor f(uv_host, p_C.head<2>() / p_C.z() + Vec2(0.002, -0.001), T_B_C, T_B_C, 300.0);
+  double pi[7], pj[7], rho = 1.0 / depth;
+  setPose(T_W_Bi, pi);
+  setPose(T_W_Bj, pj);
+  const PoseManifold pm;
+  const std::vector<double*> params = {pi, pj, &rho};
+  const std::vector<const ceres::Manifold*> manifolds = {&pm, &pm, nullptr};
+  EXPECT_TRUE(jacobiansMatch(f, params, manifolds, 1e-6));
+  // Tangent entries: pose i's dp_x of row 0, pose j's dtheta_z of row 1, the inverse depth of row 0.
+  for (const auto& [block, entry] : {std::pair{0, 0}, std::pair{1, 11}, std::pair{2, 0}}) {
+    const CorruptTangentPath bad(f, block, entry);
+    const auto res = checkJacobians(bad, params, manifolds);
+    EXPECT_FALSE(res.ok(1e-6)) << "block " << block << " entry " << entry << ":\n" << res.describe();
   }
 }
 

@@ -7,6 +7,8 @@
 #include <limits>
 #include <sstream>
 
+#include "linnet/estimator/factors/tangent_jacobians.h"
+
 namespace linnet::testing {
 namespace {
 
@@ -19,8 +21,10 @@ struct Evaluation {
   std::vector<RowMajorMatrix> jacobians;  // rows x ambient; empty matrix if not requested
 };
 
+// With `tangent_path`, through TangentJacobians::evaluateTangentSpace: rows x 6 for the pose blocks (`pose`).
 Evaluation evaluate(const ceres::CostFunction& f, const std::vector<const double*>& params,
-                    const std::vector<bool>& want) {
+                    const std::vector<bool>& want, const TangentJacobians* tangent_path = nullptr,
+                    const std::vector<bool>& pose = {}) {
   const int rows = f.num_residuals();
   const std::vector<int32_t>& sizes = f.parameter_block_sizes();
   Evaluation e;
@@ -30,11 +34,14 @@ Evaluation evaluate(const ceres::CostFunction& f, const std::vector<const double
   bool any = false;
   for (size_t b = 0; b < sizes.size(); ++b) {
     if (!want[b]) continue;
-    e.jacobians[b] = RowMajorMatrix::Constant(rows, sizes[b], std::numeric_limits<double>::quiet_NaN());
+    const int cols = tangent_path != nullptr && pose[b] ? 6 : sizes[b];
+    e.jacobians[b] = RowMajorMatrix::Constant(rows, cols, std::numeric_limits<double>::quiet_NaN());
     jac_ptrs[b] = e.jacobians[b].data();
     any = true;
   }
-  e.ok = f.Evaluate(params.data(), e.residuals.data(), any ? jac_ptrs.data() : nullptr);
+  double** J = any ? jac_ptrs.data() : nullptr;
+  e.ok = tangent_path != nullptr ? tangent_path->evaluateTangentSpace(params.data(), e.residuals.data(), J)
+                                 : f.Evaluate(params.data(), e.residuals.data(), J);
   return e;
 }
 
@@ -87,6 +94,7 @@ std::string JacobianCheckResult::describe(double tol, bool matrices) const {
     if (matrices && (!b.finite || b.max_rel_error > tol)) {
       const Eigen::IOFormat fmt(6, 0, " ", "\n", "  [", "]");
       os << " analytic:\n" << b.analytic.format(fmt) << "\n numeric:\n" << b.numeric.format(fmt) << "\n";
+      if (b.tangent_space.size() != 0) os << " analytic, tangent-space path:\n" << b.tangent_space.format(fmt) << "\n";
     }
   }
   return os.str();
@@ -137,6 +145,21 @@ JacobianCheckResult checkJacobians(const ceres::CostFunction& f, const std::vect
   }
   result.residuals = full.residuals;
 
+  // 1b. The tangent-space path, if the factor has one: pose blocks are the 7-double blocks on a 6-D manifold.
+  const auto* tangent_path = dynamic_cast<const TangentJacobians*>(&f);
+  std::vector<bool> pose(nb, false);
+  for (size_t b = 0; b < nb; ++b)
+    pose[b] = sizes[b] == 7 && manifoldOf(b) != nullptr && manifoldOf(b)->TangentSize() == 6;
+  Evaluation in_tangent;
+  if (tangent_path != nullptr) {
+    in_tangent = evaluate(f, ptrs, std::vector<bool>(nb, true), tangent_path, pose);
+    if (!in_tangent.ok || !sameNumbers(in_tangent.residuals, full.residuals)) {
+      result.evaluated = false;
+      result.problem = "evaluateTangentSpace() failed or its residuals differ from Evaluate()'s";
+      return result;
+    }
+  }
+
   // 2. Consistency: no Jacobians, then every block's Jacobian left out in turn.
   result.residuals_consistent = true;
   const Evaluation none = evaluate(f, ptrs, std::vector<bool>(nb, false));
@@ -182,6 +205,11 @@ JacobianCheckResult checkJacobians(const ceres::CostFunction& f, const std::vect
     const Eigen::MatrixXd J_ambient = full.jacobians[b];
     err.finite = J_ambient.allFinite();
     err.analytic = J_ambient * plus_jac;
+    if (tangent_path != nullptr) {
+      const Eigen::MatrixXd J_given = in_tangent.jacobians[b];
+      err.finite = err.finite && J_given.allFinite();
+      err.tangent_space = pose[b] ? J_given : Eigen::MatrixXd(J_given * plus_jac);
+    }
 
     err.numeric = Eigen::MatrixXd::Zero(rows, tangent);
     const Eigen::VectorXd x0 = x[b];
@@ -218,7 +246,11 @@ JacobianCheckResult checkJacobians(const ceres::CostFunction& f, const std::vect
 
     for (int i = 0; i < rows; ++i) {
       for (int k = 0; k < tangent; ++k) {
-        const double a = err.analytic(i, k), n = err.numeric(i, k);
+        // The worse of the two analytic paths.
+        double a = err.analytic(i, k);
+        const double n = err.numeric(i, k);
+        if (err.tangent_space.size() != 0 && std::abs(err.tangent_space(i, k) - n) > std::abs(a - n))
+          a = err.tangent_space(i, k);
         const double abs_err = std::abs(a - n);
         const double rel_err = abs_err / std::max({1.0, std::abs(a), std::abs(n)});
         err.max_abs_error = std::max(err.max_abs_error, abs_err);

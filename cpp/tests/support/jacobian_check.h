@@ -8,6 +8,10 @@
 // one block: Ceres passes nullptr for constant blocks) and that every requested Jacobian entry was written
 // (the buffers are pre-filled with NaN).
 //
+// A cost function that also implements linnet::TangentJacobians (the solver's tangent-space path) is checked
+// twice: its evaluateTangentSpace() Jacobians (pose blocks as they are, other blocks times PlusJacobian) are compared
+// with the same numeric ones, and its residuals with Evaluate's; a block's errors are the worse of the two.
+//
 // Error measures per block: max_abs_error = max |a - n| over entries; max_rel_error = max |a - n| / max(1,
 // |a|, |n|) over entries (relative for large entries, absolute for entries below 1, which suits whitened
 // residuals).
@@ -37,6 +41,7 @@ struct BlockJacobianError {
   bool finite = true;        // every analytic entry written and finite
   Eigen::MatrixXd analytic;  // residuals x tangent (J_ambient * PlusJacobian)
   Eigen::MatrixXd numeric;   // residuals x tangent (central differences through Plus)
+  Eigen::MatrixXd tangent_space;  // residuals x tangent from evaluateTangentSpace (empty if not implemented)
 };
 
 struct JacobianCheckResult {

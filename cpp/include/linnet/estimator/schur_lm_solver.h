@@ -20,6 +20,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
+#include "linnet/estimator/factors/tangent_jacobians.h"
+
 namespace linnet {
 
 struct SchurLmOptions {
@@ -80,11 +82,13 @@ class SchurLmSolver {
     int tangent;
     const ceres::Manifold* manifold;
     bool eliminate;
+    bool pose = false;  // a pose block (7, PoseManifold): TangentJacobians factors give its tangent Jacobian
     int offset;  // kept blocks: offset in the reduced system; eliminated blocks: index into landmarks_
   };
   struct Residual {
     const ceres::CostFunction* cost;
     const ceres::LossFunction* loss;
+    const TangentJacobians* tangent;  // cost, when it gives pose Jacobians in the tangent space (else nullptr)
     int first;                // its blocks are res_blocks_[first, first + count) (indices into blocks_)
     int count;
     int rows;

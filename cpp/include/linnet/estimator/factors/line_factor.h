@@ -8,25 +8,28 @@
 // Parameter blocks: pose T_W_Bj (7, PoseManifold), line (6, LineManifold). The Jacobians are analytic along the chain
 // orthonormal -> Plücker W -> Plücker C -> image line -> residual: the factor returns d r / d L_W (ambient; Ceres and
 // the Schur solver multiply by LineManifold's PlusJacobian, the orthonormal -> Plücker step) and the pose Jacobian in
-// the tangent space [dp, dtheta] converted by tangentToAmbientPose().
+// the tangent space [dp, dtheta] (as it is for the Schur solver, converted by tangentToAmbientPose() for Ceres).
 #pragma once
 
 #include <ceres/sized_cost_function.h>
 
 #include "linnet/core/pose.h"
 #include "linnet/core/types.h"
+#include "linnet/estimator/factors/tangent_jacobians.h"
 
 namespace linnet {
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
-class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6> {
+class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public TangentJacobians {
  public:
   /// s, e: endpoints observed in camera C (normalised, undistorted); T_B_C: that camera's extrinsics; sqrt_info:
   /// focal / sigma (sigma in pixels), optionally times a weight.
   LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info);
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  /// The pose Jacobian in the tangent space, the line's w.r.t. the Plücker coordinates (as Evaluate).
+  bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const override;
 
   /// Residual, the tangent pose Jacobian (w.r.t. [dp, dtheta]) and the Jacobian w.r.t. the Plücker coordinates;
   /// outputs may be nullptr. False if the line projects to a point or the result is not finite.

@@ -9,13 +9,14 @@
 //
 // Parameter blocks: pose T_W_Bi (7 = [p, q xyzw], PoseManifold), pose T_W_Bj (7), inverse depth (1).
 // Extrinsics are constants. Jacobians are analytic in the tangent space [dp, dtheta] (p <- p + dp, R <- R
-// Exp(dtheta)) and handed to Ceres through tangentToAmbientPose().
+// Exp(dtheta)): the Schur solver takes them as they are (TangentJacobians), Ceres through tangentToAmbientPose().
 #pragma once
 
 #include <ceres/sized_cost_function.h>
 
 #include "linnet/core/pose.h"
 #include "linnet/core/types.h"
+#include "linnet/estimator/factors/tangent_jacobians.h"
 
 namespace linnet {
 
@@ -23,12 +24,13 @@ namespace linnet {
 inline double pointSqrtInformation(double focal_px, double sigma_px = 1.5) { return focal_px / sigma_px; }
 
 /// Kinds (1) and (2): the host observation transferred into another frame's camera.
-class PointReprojectionFactor : public ceres::SizedCostFunction<2, 7, 7, 1> {
+class PointReprojectionFactor : public ceres::SizedCostFunction<2, 7, 7, 1>, public TangentJacobians {
  public:
   PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost,
                           const Pose& T_B_Ctarget, double sqrt_info);
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const override;
 
   /// Residual and tangent Jacobians (w.r.t. [dp_i, dtheta_i], [dp_j, dtheta_j], rho); any output may be
   /// nullptr. Returns false if the result is not finite.

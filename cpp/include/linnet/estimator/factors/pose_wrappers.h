@@ -30,31 +30,36 @@
 #include <ceres/cost_function.h>
 
 #include "linnet/core/pose.h"
+#include "linnet/estimator/factors/tangent_jacobians.h"
 
 namespace linnet {
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using ExtraMap = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;  // extra tangent -> transformed pose tangent
 
-class PoseWrappedFactor : public ceres::CostFunction {
+class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
  public:
   /// The wrapped factor takes inner's blocks followed by the extra block (`extra_size` doubles; a pose block on
-  /// PoseManifold when `extra_is_pose`, else Euclidean).
+  /// PoseManifold when `extra_is_pose`, else Euclidean). `inner` must implement TangentJacobians (the visual factors
+  /// and the wrappers do), and every 7-double block of it is a pose block.
   PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, int extra_size,
                     bool extra_is_pose);
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const final;
+  bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const final;
 
   const ceres::CostFunction& inner() const { return *inner_; }
 
  protected:
   /// The pose handed to the inner factor for the k-th pose block, and the maps from the body's tangent (6 x 6) and
-  /// the extra block's tangent (6 x tangent size) to its tangent.
+  /// the extra block's tangent (6 x tangent size, already sized) to its tangent; the maps are nullptr when only the
+  /// residual is wanted.
   virtual Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
                          ExtraMap* d_extra) const = 0;
 
  private:
   std::shared_ptr<ceres::CostFunction> inner_;
+  const TangentJacobians* inner_tangent_;  // inner_, seen through its tangent-space interface
   std::vector<int> pose_blocks_;
   int extra_tangent_;
   bool extra_is_pose_;
@@ -70,7 +75,9 @@ class RigCorrectedFactor final : public PoseWrappedFactor {
                  ExtraMap* d_extra) const override;
 
  private:
-  Pose D_;  // T_B_R0^-1
+  Pose D_;             // T_B_R0^-1
+  Mat3 R_D_t_;         // R_D^T
+  Mat3 skew_t_D_;      // [t_D]x
 };
 
 class TimeShiftedFactor final : public PoseWrappedFactor {
