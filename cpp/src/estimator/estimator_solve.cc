@@ -274,7 +274,7 @@ void EstimatorCore::marginaliseOldest() {
   priors_ = std::move(kept_priors);
   if (prior) priors_.push_back(prior);
   points_.removeFrame(window_, old_id);
-  lines_.removeFrame(old_id);
+  lines_.removeFrame(window_, old_id);
   window_.popOldest();
 }
 
@@ -299,7 +299,7 @@ void EstimatorCore::dropFrame(int index) {
   }
   priors_ = std::move(next);
   points_.removeFrame(window_, id);
-  lines_.removeFrame(id);
+  lines_.removeFrame(window_, id);
   window_.removeMerging(index);
 }
 

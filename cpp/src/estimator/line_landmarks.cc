@@ -165,16 +165,40 @@ void LineLandmarks::archive(const LineLandmark& lm) {
   m.id = lm.id;
   m.a = lm.a;
   m.b = lm.b;
+  Vec6 L = lm.L();
+  LineRefinementOptions ro;
+  ro.focal_px = focal_length_;
+  ro.huber_px = options_.huber_px * options_.pixel_sigma;
+  if (options_.map_refine && refineLine(lm.left_window, ro, &L)) {
+    // The extent again, on the refined line: the extreme back-projected endpoints of all its sightings.
+    LineLandmark refined;
+    refined.setL(L);
+    for (const LineSighting& o : lm.left_window) {
+      Vec3 a, b;
+      if (backProject(L, o.T_W_C, o.s, o.e, &a, &b)) extend(refined, a, b);
+    }
+    if (refined.has_extent && (refined.b - refined.a).norm() <= options_.max_length_m) {
+      m.a = refined.a;
+      m.b = refined.b;
+    }
+  }
   m.observations = lm.observations;
   m.t_last = lm.t_last;
   m.angle_deg = std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad;
   map_[lm.id] = m;
 }
 
-void LineLandmarks::removeFrame(FrameId frame) {
+void LineLandmarks::removeFrame(const Window& window, FrameId frame) {
+  const WindowFrame* f = window.find(frame);
   for (auto it = landmarks_.begin(); it != landmarks_.end();) {
     LineLandmark& lm = it->second;
-    lm.obs.erase(frame);
+    const auto o = lm.obs.find(frame);
+    if (o != lm.obs.end() && options_.map_refine && f != nullptr) {
+      const Pose T_W_B = f->T_W_B() * f->capture_shift;
+      lm.left_window.push_back({T_W_B * T_B_C0_, o->second.s0, o->second.e0});
+      if (o->second.has_right) lm.left_window.push_back({T_W_B * *T_B_C1_, o->second.s1, o->second.e1});
+    }
+    if (o != lm.obs.end()) lm.obs.erase(o);
     if (lm.obs.empty()) {
       if (lm.solved) archive(lm);
       it = landmarks_.erase(it);

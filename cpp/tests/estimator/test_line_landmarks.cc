@@ -219,12 +219,12 @@ TEST(LineLandmarks, SolvedLinesStayInTheMapAfterLeavingTheWindow) {
   ASSERT_EQ(lines.triangulate(w), 2);
   EXPECT_EQ(lines.mapLines().size(), 2u);  // the window's triangulated lines with an extent
   lines.residuals(w);                      // line 7 takes part in a solve, line 8 does not
-  lines.removeFrame(0);
-  lines.removeFrame(1);
+  lines.removeFrame(w, 0);
+  lines.removeFrame(w, 1);
   EXPECT_EQ(lines.all().count(7), 1u);
   EXPECT_TRUE(lines.residuals(w).empty());  // one observation left: not in the last solve any more
   EXPECT_FALSE(lines.all().at(7).used);
-  lines.removeFrame(2);
+  lines.removeFrame(w, 2);
   EXPECT_TRUE(lines.all().empty());
   const std::vector<MapLine> map = lines.mapLines();
   ASSERT_EQ(map.size(), 1u);
@@ -244,6 +244,34 @@ TEST(LineLandmarks, SolvedLinesStayInTheMapAfterLeavingTheWindow) {
   EXPECT_TRUE(again.all().empty());
   ASSERT_EQ(again.mapLines().size(), 1u);
   EXPECT_EQ(again.mapLines()[0].id, 7);
+}
+
+TEST(LineLandmarks, ALineLeavingTheWindowIsRefinedOnAllItsObservations) {
+  // The window's estimate is off by 5 cm (as a line whose early views were marginalised may be); its sightings at
+  // the frames' poses put it back on the true segment when it leaves for the map. With map_refine off the map keeps
+  // the window's segment.
+  for (const bool refine : {true, false}) {
+    Window w = makeWindow(3);
+    LineOptions o;
+    o.map_refine = refine;
+    LineLandmarks lines = observedLines(w, o);
+    ASSERT_EQ(lines.triangulate(w), 2);
+    const std::vector<ResidualSpec> res = lines.residuals(w);
+    ASSERT_FALSE(res.empty());
+    Eigen::Map<Vec6> L(res[0].blocks[1]);
+    L = normalisePlucker(transformPlucker(Pose(Quat::Identity(), Vec3(0.05, 0.0, 0.0)), Vec6(L)));
+    const Vec3 window_a = lines.all().at(7).a, window_b = lines.all().at(7).b;
+    for (FrameId f = 0; f < 3; ++f) lines.removeFrame(w, f);
+    const std::vector<MapLine> map = lines.mapLines();
+    ASSERT_EQ(map.size(), 1u);
+    if (refine) {
+      EXPECT_LT(segmentDistance(map[0].a, map[0].b, kA) + segmentDistance(map[0].a, map[0].b, kB), 1e-4);
+      EXPECT_NEAR((map[0].b - map[0].a).norm(), (kB - kA).norm(), 1e-4);
+    } else {
+      EXPECT_EQ(map[0].a, window_a);
+      EXPECT_EQ(map[0].b, window_b);
+    }
+  }
 }
 
 TEST(LineLandmarks, RejectOutliersRemovesAShiftedLineAndTracksTheExtent) {

@@ -174,6 +174,8 @@ struct LineOptions {
   bool marginalise = true;            // when the oldest keyframe leaves, its lines' residuals go into the prior (the
                                       // thesis' strategy, lines dropped from it as landmarks); false: its line
                                       // observations are only dropped
+  bool map_refine = true;             // a line leaving the window for the map is re-estimated on every observation of
+                                      // its life at the frames' final poses (line_map_refinement.h)
   bool weighting = false;             // patent point / line weighting per frame (see below); off: it did not help
   int weighting_min_lines = 30;       // more lines than this in a frame: the fixed weights below
   double point_weight = 0.2;          // patent: w_p, w_l (line-dominant in low texture); otherwise the weights
@@ -197,6 +199,7 @@ struct LineOptions {
     v("min_observations", min_observations, "frames a line must be seen in to enter a solve", 2, 1000);
     v("right_residuals", right_residuals, "cam1 line residuals where matched");
     v("marginalise", marginalise, "lines observed by the leaving keyframe go into the prior");
+    v("map_refine", map_refine, "refine lines leaving the window on all their observations");
     v("weighting", weighting, "patent point / line weighting per frame");
     v("weighting_min_lines", weighting_min_lines, "lines in a frame above which the fixed weights apply", 0, 100000);
     v("point_weight", point_weight, "point weight w_p with many lines", 0.0, 1.0);

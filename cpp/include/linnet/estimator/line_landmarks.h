@@ -19,6 +19,7 @@
 #include "linnet/core/map_line.h"
 #include "linnet/core/pose.h"
 #include "linnet/estimator/estimator_options.h"
+#include "linnet/estimator/line_map_refinement.h"
 #include "linnet/estimator/residual_spec.h"
 #include "linnet/estimator/window.h"
 #include "linnet/geometry/plucker.h"
@@ -45,6 +46,8 @@ struct LineLandmark {
   double max_sin_angle = 0.0;           // widest plane angle seen so far (stereo or first vs later frame), sine
   bool has_extent = false;
   Vec3 a = Vec3::Zero(), b = Vec3::Zero();  // finite segment: extreme back-projected endpoints on the line, W
+  std::vector<LineSighting> left_window;    // observations of frames that left the window, at their final poses
+                                            // (cam0 and cam1; kept when options.map_refine)
 
   Vec6 L() const { return Eigen::Map<const Vec6>(plucker.data()); }
   void setL(const Vec6& L) { Eigen::Map<Vec6>(plucker.data()) = L; }
@@ -73,8 +76,9 @@ class LineLandmarks {
   /// `used`. frame_weight (may be empty): cost weight per observing frame (point / line weighting).
   std::vector<ResidualSpec> residuals(const Window& window, FrameId host_only = -1,
                                       const std::map<FrameId, double>& frame_weight = {});
-  /// Drops the frame's observations; lines left without window observations move to the map (if they were good).
-  void removeFrame(FrameId frame);
+  /// Drops the frame's observations (the frame is still in `window`: with options.map_refine they are kept for the
+  /// map at its pose); lines left without window observations move to the map (if they were good).
+  void removeFrame(const Window& window, FrameId frame);
   /// Removes used lines that fail a check after a solve (reprojection, depth, end-on, drift). Updates the extents of
   /// the remaining lines with the newest frame's observation. Returns how many were removed.
   int rejectOutliers(const Window& window);
@@ -112,6 +116,7 @@ class LineLandmarks {
   bool usable(const LineLandmark& lm) const {
     return lm.triangulated && lm.obs.size() >= static_cast<std::size_t>(std::max(2, options_.min_observations));
   }
+  /// Into the map, refined on all its sightings first when options.map_refine.
   void archive(const LineLandmark& lm);
 
   LineOptions options_;

@@ -1,0 +1,38 @@
+// Refinement of a map line on every observation of its life.
+//
+// In the window a line is estimated from the observations of the window's frames only: when the oldest keyframe
+// leaves, the line's residuals there go into the marginalisation prior with the line dropped (the thesis' strategy),
+// so a line tracked across more keyframes than the window holds loses its early, widest-baseline views. A line that
+// leaves the window for the map is therefore re-estimated once more from all its sightings, each at its frame's final
+// pose (held fixed), as a local bundle adjustment of that one line (the map-point refinement of keyframe-based SLAM,
+// e.g. ORB-SLAM's local mapping, restricted to the line and without moving the poses).
+#pragma once
+
+#include <vector>
+
+#include "linnet/core/pose.h"
+#include "linnet/core/types.h"
+#include "linnet/estimator/factors/line_factor.h"
+
+namespace linnet {
+
+/// One observation of a line: the observing camera's pose in W and the segment's normalised endpoints.
+struct LineSighting {
+  Pose T_W_C;
+  Vec2 s = Vec2::Zero(), e = Vec2::Zero();
+};
+
+struct LineRefinementOptions {
+  double focal_px = 460.0;   // pixels per normalised unit
+  double huber_px = 1.5;     // Huber threshold of the endpoint distances, pixels
+  int max_iterations = 10;   // Levenberg-Marquardt iterations
+};
+
+/// Mean endpoint-to-line distance over the sightings, pixels (+infinity if the line projects to a point in one).
+double meanSightingErrorPx(const Vec6& L_W, const std::vector<LineSighting>& sightings, double focal_px);
+
+/// Minimises the robustified endpoint distances of the sightings over the line (Plücker L_W, LineManifold update),
+/// starting from *L_W. Writes the result and returns true only if it lowers the mean endpoint distance.
+bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinementOptions& options, Vec6* L_W);
+
+}  // namespace linnet

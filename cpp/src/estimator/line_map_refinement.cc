@@ -1,0 +1,59 @@
+// One line on all its sightings, poses fixed (see line_map_refinement.h).
+#include "linnet/estimator/line_map_refinement.h"
+
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include <ceres/loss_function.h>
+#include <ceres/problem.h>
+#include <ceres/solver.h>
+
+#include "linnet/estimator/manifolds.h"
+
+namespace linnet {
+
+double meanSightingErrorPx(const Vec6& L_W, const std::vector<LineSighting>& sightings, double focal_px) {
+  if (sightings.empty()) return std::numeric_limits<double>::infinity();
+  double sum = 0.0;
+  for (const LineSighting& o : sightings) sum += lineReprojectionErrorPx(L_W, o.T_W_C, o.s, o.e, focal_px);
+  return sum / static_cast<double>(sightings.size());
+}
+
+bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinementOptions& options, Vec6* L_W) {
+  if (sightings.size() < 2 || !L_W->allFinite()) return false;
+  const double before = meanSightingErrorPx(*L_W, sightings, options.focal_px);
+  if (!std::isfinite(before)) return false;
+
+  std::array<double, 6> L{};
+  Eigen::Map<Vec6>(L.data()) = *L_W;
+  // The cameras are the factors' "bodies" (identity extrinsics), held constant.
+  std::vector<std::array<double, 7>> poses(sightings.size());
+  ceres::Problem::Options po;
+  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  LineManifold line_manifold;
+  ceres::HuberLoss loss(options.huber_px);  // on residuals in pixels (sqrt_info = focal)
+  problem.AddParameterBlock(L.data(), kLineAmbientSize, &line_manifold);
+  for (std::size_t k = 0; k < sightings.size(); ++k) {
+    setPose(sightings[k].T_W_C, poses[k].data());
+    problem.AddResidualBlock(new LineReprojectionFactor(sightings[k].s, sightings[k].e, Pose(), options.focal_px), &loss,
+                             poses[k].data(), L.data());
+    problem.SetParameterBlockConstant(poses[k].data());
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = options.max_iterations;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+
+  const Vec6 refined = Eigen::Map<const Vec6>(L.data());
+  if (!refined.allFinite() || !(meanSightingErrorPx(refined, sightings, options.focal_px) < before)) return false;
+  *L_W = refined;
+  return true;
+}
+
+}  // namespace linnet
