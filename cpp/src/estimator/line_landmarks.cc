@@ -33,15 +33,7 @@ void LineLandmarks::observe(FrameId frame, Timestamp t, const std::vector<LineOb
 
 bool LineLandmarks::backProject(const Vec6& L, const Pose& T_W_C, const Vec2& s, const Vec2& e, Vec3* a,
                                 Vec3* b) const {
-  const Vec2* ends[2] = {&s, &e};
-  Vec3* out[2] = {a, b};
-  for (int k = 0; k < 2; ++k) {
-    const Vec3 ray = T_W_C.q * Vec3(ends[k]->x(), ends[k]->y(), 1.0);
-    const std::optional<RayLinePoint> p = closestPointToRay(L, T_W_C.p, ray);
-    if (!p || p->ray_t < options_.min_depth_m || p->ray_t > options_.max_depth_m) return false;
-    *out[k] = p->on_line;
-  }
-  return true;
+  return backProjectSegment(L, T_W_C, s, e, options_.min_depth_m, options_.max_depth_m, a, b);
 }
 
 void LineLandmarks::extend(LineLandmark& lm, const Vec3& a, const Vec3& b) const {

@@ -4,12 +4,14 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
 #include <ceres/solver.h>
 
 #include "linnet/estimator/manifolds.h"
+#include "linnet/geometry/plucker.h"
 
 namespace linnet {
 
@@ -18,6 +20,19 @@ double meanSightingErrorPx(const Vec6& L_W, const std::vector<LineSighting>& sig
   double sum = 0.0;
   for (const LineSighting& o : sightings) sum += lineReprojectionErrorPx(L_W, o.T_W_C, o.s, o.e, focal_px);
   return sum / static_cast<double>(sightings.size());
+}
+
+bool backProjectSegment(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double min_depth_m,
+                        double max_depth_m, Vec3* a, Vec3* b) {
+  const Vec2* ends[2] = {&s, &e};
+  Vec3* out[2] = {a, b};
+  for (int k = 0; k < 2; ++k) {
+    const Vec3 ray = T_W_C.q * Vec3(ends[k]->x(), ends[k]->y(), 1.0);
+    const std::optional<RayLinePoint> p = closestPointToRay(L_W, T_W_C.p, ray);
+    if (!p || p->ray_t < min_depth_m || p->ray_t > max_depth_m) return false;
+    *out[k] = p->on_line;
+  }
+  return true;
 }
 
 bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinementOptions& options, Vec6* L_W) {

@@ -31,6 +31,11 @@ struct LineRefinementOptions {
 /// Mean endpoint-to-line distance over the sightings, pixels (+infinity if the line projects to a point in one).
 double meanSightingErrorPx(const Vec6& L_W, const std::vector<LineSighting>& sightings, double focal_px);
 
+/// The points of L closest to the rays through a segment's endpoints s, e (normalised) of camera T_W_C; false if a
+/// ray misses the depth range [min_depth_m, max_depth_m] (depth along the camera's z) or is parallel to the line.
+bool backProjectSegment(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double min_depth_m,
+                        double max_depth_m, Vec3* a, Vec3* b);
+
 /// Minimises the robustified endpoint distances of the sightings over the line (Plücker L_W, LineManifold update),
 /// starting from *L_W. Writes the result and returns true only if it lowers the mean endpoint distance.
 bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinementOptions& options, Vec6* L_W);
