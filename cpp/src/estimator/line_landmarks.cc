@@ -10,6 +10,7 @@ namespace linnet {
 
 namespace {
 constexpr double kDegToRad = M_PI / 180.0;
+constexpr std::size_t kMaxSightings = 100;  // a line's sightings kept for the map's refinement (up to twice as many)
 }
 
 LineLandmarks::LineLandmarks(const LineOptions& options, double focal_length, const Pose& T_B_C0,
@@ -189,6 +190,13 @@ void LineLandmarks::removeFrame(const Window& window, FrameId frame) {
       const Pose T_W_B = f->T_W_B() * f->capture_shift;
       lm.left_window.push_back({T_W_B * T_B_C0_, o->second.s0, o->second.e0});
       if (o->second.has_right) lm.left_window.push_back({T_W_B * *T_B_C1_, o->second.s1, o->second.e1});
+      // Bounded: a line tracked for long (a camera at rest drops a frame per image) keeps every other sighting once
+      // it has 2 x kMaxSightings, so memory and the refinement's cost stay bounded; the first is always kept.
+      if (lm.left_window.size() > 2 * kMaxSightings) {
+        std::size_t n = 0;
+        for (std::size_t k = 0; k < lm.left_window.size(); k += 2) lm.left_window[n++] = lm.left_window[k];
+        lm.left_window.resize(n);
+      }
     }
     if (o != lm.obs.end()) lm.obs.erase(o);
     if (lm.obs.empty()) {

@@ -274,6 +274,20 @@ TEST(LineLandmarks, ALineLeavingTheWindowIsRefinedOnAllItsObservations) {
   }
 }
 
+TEST(LineLandmarks, SightingsKeptForTheMapStayBounded) {
+  // A camera at rest drops a frame per image while a line stays tracked: its sightings must not grow without bound.
+  Window w;
+  LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+  for (FrameId i = 0; i < 600; ++i) {
+    w.push(kT0 + i * kDt).setPose(Pose());
+    lines.observe(i, w.newest().t, {observation(7, Pose(), kA, kB, true)});
+    if (i > 0) lines.removeFrame(w, i - 1);
+  }
+  const std::size_t kept = lines.all().at(7).left_window.size();
+  EXPECT_GE(kept, 100u);
+  EXPECT_LE(kept, 200u);
+}
+
 TEST(LineLandmarks, RejectOutliersRemovesAShiftedLineAndTracksTheExtent) {
   Window w = makeWindow(3);
   {
