@@ -71,12 +71,7 @@ bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameter
 
 bool LineReprojectionFactor::Evaluate(double const* const* parameters, double* residuals,
                                       double** jacobians) const {
-  const bool want_pose = jacobians != nullptr && jacobians[0] != nullptr;
-  Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jp;
-  double* tangent[2] = {want_pose ? Jp.data() : nullptr, jacobians != nullptr ? jacobians[1] : nullptr};
-  if (!evaluateTangentSpace(parameters, residuals, jacobians != nullptr ? tangent : nullptr)) return false;
-  if (want_pose) tangentToAmbientPose<2>(Eigen::Matrix<double, 2, 6>(Jp), parameters[0], jacobians[0]);
-  return true;
+  return evaluateThroughTangent(*this, parameter_block_sizes(), num_residuals(), parameters, residuals, jacobians);
 }
 
 double lineReprojectionErrorPx(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double focal_px) {

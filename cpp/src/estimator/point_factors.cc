@@ -87,15 +87,7 @@ bool PointReprojectionFactor::evaluateTangentSpace(double const* const* paramete
 
 bool PointReprojectionFactor::Evaluate(double const* const* parameters, double* residuals,
                                        double** jacobians) const {
-  const bool want_i = jacobians != nullptr && jacobians[0] != nullptr;
-  const bool want_j = jacobians != nullptr && jacobians[1] != nullptr;
-  Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_i, J_j;
-  double* tangent[3] = {want_i ? J_i.data() : nullptr, want_j ? J_j.data() : nullptr,
-                        jacobians != nullptr ? jacobians[2] : nullptr};
-  if (!evaluateTangentSpace(parameters, residuals, jacobians != nullptr ? tangent : nullptr)) return false;
-  if (want_i) tangentToAmbientPose<2>(Eigen::Matrix<double, 2, 6>(J_i), parameters[0], jacobians[0]);
-  if (want_j) tangentToAmbientPose<2>(Eigen::Matrix<double, 2, 6>(J_j), parameters[1], jacobians[1]);
-  return true;
+  return evaluateThroughTangent(*this, parameter_block_sizes(), num_residuals(), parameters, residuals, jacobians);
 }
 
 PointStereoFactor::PointStereoFactor(const Vec2& uv_left, const Vec2& uv_right, const Pose& T_B_C0,

@@ -14,16 +14,8 @@ namespace {
 constexpr int kMaxPoses = 2;
 constexpr int kMaxRows = 4;
 constexpr int kMaxBlocks = 8;
-using AmbientJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseAmbientSize, Eigen::RowMajor, kMaxRows, kPoseAmbientSize>;
 using TangentJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseTangentSize, Eigen::RowMajor, kMaxRows, kPoseTangentSize>;
 using TangentMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
-
-/// Writes the ambient (rows x 7, row-major) Jacobian of a pose block from its tangent one (as tangentToAmbientPose).
-void poseTangentToAmbient(const TangentJ& J_t, const double* pose, double* out) {
-  Eigen::Map<AmbientJ> J(out, J_t.rows(), kPoseAmbientSize);
-  J.leftCols(3) = J_t.leftCols(3);
-  J.rightCols(4) = 4.0 * J_t.rightCols(3) * quatPlusJacobian(poseRotation(pose)).transpose();
-}
 }  // namespace
 
 PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
@@ -92,23 +84,7 @@ bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, do
 }
 
 bool PoseWrappedFactor::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
-  if (jacobians == nullptr) return evaluateTangentSpace(parameters, residuals, nullptr);
-  // Tangent Jacobians of the pose blocks (every 7-double block) into scratch, converted for Ceres afterwards.
-  const std::vector<int32_t>& sizes = parameter_block_sizes();
-  const int rows = num_residuals();
-  std::array<TangentJ, kMaxBlocks> scratch;
-  std::array<double*, kMaxBlocks> tangent{};
-  for (std::size_t b = 0; b < sizes.size(); ++b) {
-    tangent[b] = jacobians[b];
-    if (jacobians[b] == nullptr || sizes[b] != kPoseAmbientSize) continue;
-    scratch[b].resize(rows, kPoseTangentSize);
-    tangent[b] = scratch[b].data();
-  }
-  if (!evaluateTangentSpace(parameters, residuals, tangent.data())) return false;
-  for (std::size_t b = 0; b < sizes.size(); ++b)
-    if (jacobians[b] != nullptr && sizes[b] == kPoseAmbientSize)
-      poseTangentToAmbient(scratch[b], parameters[b], jacobians[b]);
-  return true;
+  return evaluateThroughTangent(*this, parameter_block_sizes(), num_residuals(), parameters, residuals, jacobians);
 }
 
 RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,

@@ -7,6 +7,9 @@
 // the Schur solver uses them, Ceres keeps using Evaluate. Both describe the same function.
 #pragma once
 
+#include <cstdint>
+#include <vector>
+
 namespace linnet {
 
 class TangentJacobians {
@@ -18,5 +21,11 @@ class TangentJacobians {
   /// `jacobians` and any of its entries may be nullptr.
   virtual bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const = 0;
 };
+
+/// ceres::CostFunction::Evaluate of a TangentJacobians factor (`block_sizes`, `rows`: its shape): evaluateTangentSpace
+/// with the pose blocks' Jacobians in scratch, then converted to ambient ones as tangentToAmbientPose does. For visual
+/// residuals: at most 4 rows and 8 blocks (UsageError otherwise); no heap allocation.
+bool evaluateThroughTangent(const TangentJacobians& f, const std::vector<std::int32_t>& block_sizes, int rows,
+                            double const* const* parameters, double* residuals, double** jacobians);
 
 }  // namespace linnet
