@@ -91,6 +91,11 @@ int main(int argc, char** argv) {
     if (r.time_offset_estimated)
       std::printf("camera-to-IMU time offset estimated online: %.3f ms (camera stamp - capture time)\n",
                   1e3 * r.time_offset_s);
+    if (r.loop_enabled) {
+      double largest = 0.0;
+      for (const linnet::LoopEvent& e : r.loops) largest = std::max(largest, e.correction_m);
+      std::printf("loop closure: %zu loops, largest correction %.3f m\n", r.loops.size(), largest);
+    }
     if (!out.empty()) linnet::writeRunOutputs(r, out);
     if (2 * r.frames_with_pose < r.processed_frames || r.processed_frames == 0) {
       std::fprintf(stderr, "linnet_run: tracking failed: %d of %d processed frames have a pose\n", r.frames_with_pose,

@@ -162,6 +162,14 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
         summary["time_offset_ms"] = 1e3 * run.time_offset_s
     if run.extrinsics_estimated:
         summary["extrinsics_correction"] = extrinsics_correction(run.extrinsics_correction)
+    if run.loop_enabled:
+        loops = run.loops
+        summary["loop_closure"] = {
+            "loops": len(loops),
+            "largest_correction_m": max((e["correction_m"] for e in loops), default=0.0),
+            "events": [{"t_new_s": 1e-9 * e["t_new_ns"], "t_old_s": 1e-9 * e["t_old_ns"], "inliers": e["inliers"],
+                        "correction_m": e["correction_m"], "correction_yaw_deg": e["correction_yaw_deg"]}
+                       for e in loops]}
     gt = find_ground_truth(dataset) if dataset is not None else None
     traj = run.trajectory(True)
     if gt is not None and len(traj["t_ns"]) >= 3:

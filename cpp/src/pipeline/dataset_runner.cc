@@ -183,6 +183,8 @@ RunSummary StreamRun::finish() {
   summary.map_points = std::move(map.points);
   summary.map_lines = std::move(map.lines);
   summary.dropped_frames = system_->droppedFrames();
+  summary.loop_enabled = config_.loop.enabled && config_.stereo;
+  summary.loops = system_->loops();
   summary.processed_frames = static_cast<int>(summary.results.size());
   for (const FrameResult& r : summary.results) {
     if (r.estimate.has_pose) {
@@ -270,19 +272,24 @@ void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (ec) throw InputError(out_dir, 0, "cannot create the output folder: " + ec.message());
-  std::vector<TrajectoryState> states;
-  for (const FrameResult& r : summary.results) {
-    if (!r.estimate.has_pose) continue;
-    TrajectoryState s;
-    s.t = r.estimate.t;
-    s.T_W_B = r.estimate.T_W_B;
-    s.v_W = r.estimate.v_W;
-    s.b_a = r.estimate.b_a;
-    s.b_g = r.estimate.b_g;
-    states.push_back(s);
-  }
-  writeTum((fs::path(out_dir) / "trajectory.tum").string(), states);
-  writeEurocCsv((fs::path(out_dir) / "trajectory.csv").string(), states);
+  // The System's poses (loop-corrected when loop closure is on), or the odometry (the estimator's own output).
+  auto states = [&](bool odometry) {
+    std::vector<TrajectoryState> out;
+    for (const FrameResult& r : summary.results) {
+      if (!r.estimate.has_pose) continue;
+      TrajectoryState s;
+      s.t = r.estimate.t;
+      s.T_W_B = odometry ? r.estimate.T_W_B : r.T_W_B;
+      s.v_W = odometry ? r.estimate.v_W : r.v_W;
+      s.b_a = r.estimate.b_a;
+      s.b_g = r.estimate.b_g;
+      out.push_back(s);
+    }
+    return out;
+  };
+  writeTum((fs::path(out_dir) / "trajectory.tum").string(), states(false));
+  if (summary.loop_enabled) writeTum((fs::path(out_dir) / "odometry.tum").string(), states(true));
+  writeEurocCsv((fs::path(out_dir) / "trajectory.csv").string(), states(false));
   MapGeometry map;
   map.points = summary.map_points;
   for (const MapLine& l : summary.map_lines) map.segments.push_back(Segment3{l.a, l.b});
@@ -294,13 +301,13 @@ void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {
   if (f == nullptr) throw InputError(timing_path, 0, "cannot write");
   std::fprintf(f, "#timestamp [ns],frontend_ms,backend_ms,total_ms,point_ms,line_ms,points,stereo_points,lines,"
                   "keyframe,status,point_cpu_ms,line_cpu_ms,backend_cpu_ms,line_backend_ms,solver_ms,"
-                  "landmark_points,landmark_lines\n");
+                  "landmark_points,landmark_lines,loop_cpu_ms\n");
   for (const FrameResult& r : summary.results) {
-    std::fprintf(f, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d\n",
+    std::fprintf(f, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%.3f\n",
                  static_cast<long long>(r.estimate.t), r.frontend_ms, r.backend_ms, r.frontend_ms + r.backend_ms,
                  r.point_ms, r.line_ms, r.tracked_points, r.stereo_points, r.tracked_lines,
                  r.estimate.keyframe ? 1 : 0, static_cast<int>(r.estimate.status), r.point_cpu_ms, r.line_cpu_ms,
-                 r.backend_cpu_ms, r.line_backend_ms, r.solver_ms, r.estimate.num_points, r.estimate.num_lines);
+                 r.backend_cpu_ms, r.line_backend_ms, r.solver_ms, r.estimate.num_points, r.estimate.num_lines, r.loop_cpu_ms);
   }
   std::fclose(f);
 }

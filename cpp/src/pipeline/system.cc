@@ -33,6 +33,7 @@ struct FrameInput {
 
 struct ObservationItem {
   FrameObservations obs;
+  cv::Mat left;  // for the loop closer's keyframe descriptors (only when loop closure is on)
   double frontend_ms = 0.0;
   double point_cpu_ms = 0.0;
   double line_cpu_ms = 0.0;
@@ -50,6 +51,9 @@ struct System::Impl {
         lines(c.lines, *cam0, cam1.get(), T_C1_C0),
         estimator(c.estimator, c.imu, c.cam0.T_B_C,
                   c.stereo ? std::optional<Pose>(c.cam1.T_B_C) : std::optional<Pose>()),
+        loop(c.loop.enabled && c.stereo
+                 ? std::make_unique<LoopCloser>(c.loop, *cam0, c.cam0.T_B_C, T_C1_C0)
+                 : nullptr),
         frames(static_cast<std::size_t>(c.pipeline.frame_queue_capacity)),
         observations(static_cast<std::size_t>(c.pipeline.observation_queue_capacity)) {}
 
@@ -59,6 +63,7 @@ struct System::Impl {
   PointTracker points;
   LineTracker lines;
   Estimator estimator;
+  std::unique_ptr<LoopCloser> loop;  // touched by the estimator thread only while running
 
   BoundedQueue<FrameInput> frames;
   BoundedQueue<ObservationItem> observations;
@@ -140,6 +145,7 @@ struct System::Impl {
         ObservationItem item;
         item.obs.t = in->t;
         item.obs.stereo = config.stereo;
+        if (loop) item.left = in->left;
         const auto t0 = Clock::now();
         auto trackLines = [&] {
           const auto tl = Clock::now();
@@ -205,6 +211,17 @@ struct System::Impl {
         r.estimate = estimator.addFrame(item->obs);
         r.backend_cpu_ms = threadCpuMs() - c0;
         r.backend_ms = msSince(t0);
+        r.T_W_B = r.estimate.T_W_B;
+        r.v_W = r.estimate.v_W;
+        if (loop && r.estimate.has_pose) {
+          const double cl = threadCpuMs();
+          if (r.estimate.keyframe && r.estimate.status == TrackingStatus::kTracking)
+            loop->addKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points);
+          const Pose C = loop->latestCorrection();
+          r.T_W_B = C * r.estimate.T_W_B;
+          r.v_W = C.q * r.estimate.v_W;
+          r.loop_cpu_ms = threadCpuMs() - cl;
+        }
         r.line_backend_ms = r.estimate.line_ms;
         r.solver_ms = r.estimate.solver_ms;
         r.point_cpu_ms = item->point_cpu_ms;
@@ -366,6 +383,16 @@ void System::finish() {
   if (impl_->estimator_thread.joinable()) impl_->estimator_thread.join();
   impl_->line_worker.reset();
   rethrowWorkerError();
+  if (impl_->loop) {
+    // Every frame with the final correction of its keyframe (the pose graph moved them since the callback).
+    std::lock_guard<std::mutex> lock(impl_->result_mutex);
+    for (FrameResult& r : impl_->results) {
+      if (!r.estimate.has_pose) continue;
+      const Pose C = impl_->loop->correctionAt(r.estimate.t);
+      r.T_W_B = C * r.estimate.T_W_B;
+      r.v_W = C.q * r.estimate.v_W;
+    }
+  }
 }
 
 std::vector<FrameResult> System::trajectory() const {
@@ -376,7 +403,22 @@ std::vector<FrameResult> System::trajectory() const {
 SystemMap System::map() const {
   // The estimator is only touched from its own thread while running; read it once the stream has finished.
   if (!impl_->finished) return {};
-  return SystemMap{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines()};
+  SystemMap map{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines()};
+  if (impl_->loop) {
+    const Pose C = impl_->loop->latestCorrection();
+    for (Vec3& p : map.points) p = C * p;
+    for (MapLine& l : map.lines) {
+      const Pose Cl = l.t_last > 0 ? impl_->loop->correctionAt(l.t_last) : C;
+      l.a = Cl * l.a;
+      l.b = Cl * l.b;
+    }
+  }
+  return map;
+}
+
+std::vector<LoopEvent> System::loops() const {
+  if (!impl_->loop || !impl_->finished) return {};
+  return impl_->loop->loops();
 }
 
 }  // namespace linnet

@@ -17,15 +17,15 @@ py::dict resultsToArrays(const std::vector<FrameResult>& results, bool only_with
     const EstimatorOutput& e = sel[i]->estimate;
     t.mutable_at(i) = e.t;
     for (int k = 0; k < 3; ++k) {
-      p.mutable_at(i, k) = e.T_W_B.p[k];
-      v.mutable_at(i, k) = e.v_W[k];
+      p.mutable_at(i, k) = sel[i]->T_W_B.p[k];
+      v.mutable_at(i, k) = sel[i]->v_W[k];
       ba.mutable_at(i, k) = e.b_a[k];
       bg.mutable_at(i, k) = e.b_g[k];
     }
-    q.mutable_at(i, 0) = e.T_W_B.q.x();
-    q.mutable_at(i, 1) = e.T_W_B.q.y();
-    q.mutable_at(i, 2) = e.T_W_B.q.z();
-    q.mutable_at(i, 3) = e.T_W_B.q.w();
+    q.mutable_at(i, 0) = sel[i]->T_W_B.q.x();
+    q.mutable_at(i, 1) = sel[i]->T_W_B.q.y();
+    q.mutable_at(i, 2) = sel[i]->T_W_B.q.z();
+    q.mutable_at(i, 3) = sel[i]->T_W_B.q.w();
     has_pose.mutable_at(i) = e.has_pose;
     keyframe.mutable_at(i) = e.keyframe;
     frontend_ms.mutable_at(i) = sel[i]->frontend_ms;

@@ -45,13 +45,31 @@ void bindRun(py::module_& m) {
           "online correction T_B_R of the rig's extrinsics (4x4; cameras at T_B_R @ T_B_Ci)")
       .def_readonly("time_offset_estimated", &RunSummary::time_offset_estimated)
       .def_readonly("time_offset_s", &RunSummary::time_offset_s)
+      .def_readonly("loop_enabled", &RunSummary::loop_enabled)
+      .def_property_readonly(
+          "loops",
+          [](const RunSummary& r) {
+            py::list out;
+            for (const LoopEvent& e : r.loops) {
+              py::dict d;
+              d["t_new_ns"] = e.t_new;
+              d["t_old_ns"] = e.t_old;
+              d["inliers"] = e.inliers;
+              d["correction_m"] = e.correction_m;
+              d["correction_yaw_deg"] = e.correction_yaw_deg;
+              out.append(d);
+            }
+            return out;
+          },
+          "loops closed: list of dicts (t_new_ns, t_old_ns, inliers, correction_m, correction_yaw_deg)")
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },
            "dict: points (N x 3), lines (M x 2 x 3), line_ids (M), line_observations (M); W, metres")
       .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
       .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
-           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv into out_dir");
+           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv (and odometry.tum with loop "
+           "closure) into out_dir");
 
   py::class_<StreamRun>(m, "StreamRun",
                         "A run fed sample by sample in time order (ROS bags, drivers): add_imu / add_frame, then "

@@ -129,11 +129,11 @@ void bindSystem(py::module_& m) {
       .def_property_readonly("t_ns", [](const FrameResult& r) { return r.estimate.t; })
       .def_property_readonly("status", [](const FrameResult& r) { return toString(r.estimate.status); })
       .def_property_readonly("has_pose", [](const FrameResult& r) { return r.estimate.has_pose; })
-      .def_property_readonly("position", [](const FrameResult& r) { return Vec3(r.estimate.T_W_B.p); })
+      .def_property_readonly("position", [](const FrameResult& r) { return Vec3(r.T_W_B.p); })
       .def_property_readonly("quaternion_xyzw", [](const FrameResult& r) {
-        return Vec4(r.estimate.T_W_B.q.x(), r.estimate.T_W_B.q.y(), r.estimate.T_W_B.q.z(), r.estimate.T_W_B.q.w());
+        return Vec4(r.T_W_B.q.x(), r.T_W_B.q.y(), r.T_W_B.q.z(), r.T_W_B.q.w());
       })
-      .def_property_readonly("velocity", [](const FrameResult& r) { return r.estimate.v_W; })
+      .def_property_readonly("velocity", [](const FrameResult& r) { return r.v_W; })
       .def_property_readonly("bias_acc", [](const FrameResult& r) { return r.estimate.b_a; })
       .def_property_readonly("bias_gyr", [](const FrameResult& r) { return r.estimate.b_g; })
       .def_property_readonly("keyframe", [](const FrameResult& r) { return r.estimate.keyframe; })

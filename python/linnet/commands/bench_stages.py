@@ -13,6 +13,8 @@ from linnet.commands.params import OUTPUT_FILE
 #: timing.csv columns (0-based) of the per-stage times; the *_cpu ones are thread CPU time (unaffected by other load).
 WALL_COLUMNS = {"frontend": 1, "backend": 2, "total": 3, "points": 4, "lines": 5}
 CPU_COLUMNS = {"points_cpu": 11, "lines_cpu": 12, "backend_cpu": 13}
+#: The loop closer's CPU time (estimator thread, after the estimator), in runs written since loop closure exists.
+LOOP_CPU_COLUMN = 18
 #: Parts of the back-end (wall time on the estimator thread, which does nothing else): line steps and the solve.
 BACKEND_PARTS = {"line_backend": 14, "solver": 15}
 
@@ -32,8 +34,11 @@ def stage_table(timing_csv: Path) -> dict:
     data = np.atleast_2d(np.genfromtxt(timing_csv, delimiter=",", comments="#"))
     out = {name: _stats(data[:, c]) for name, c in WALL_COLUMNS.items()}
     if data.shape[1] > max(CPU_COLUMNS.values()):
-        cpu_total = sum(data[:, c] for c in CPU_COLUMNS.values())
-        for name, c in CPU_COLUMNS.items():
+        columns = dict(CPU_COLUMNS)
+        if data.shape[1] > LOOP_CPU_COLUMN:
+            columns["loop_cpu"] = LOOP_CPU_COLUMN
+        cpu_total = sum(data[:, c] for c in columns.values())
+        for name, c in columns.items():
             out[name] = dict(_stats(data[:, c]), share=float(np.sum(data[:, c]) / max(np.sum(cpu_total), 1e-12)))
         out["frame_cpu"] = dict(_stats(cpu_total), share=1.0)
     if data.shape[1] > max(BACKEND_PARTS.values()):

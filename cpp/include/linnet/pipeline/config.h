@@ -9,6 +9,7 @@
 #include "linnet/features/point_tracker.h"
 #include "linnet/imu/imu_types.h"
 #include "linnet/io/sensor_protocol.h"
+#include "linnet/loop/loop_options.h"
 
 namespace linnet {
 
@@ -41,6 +42,7 @@ struct Config {
   PointTrackerOptions points;
   LineTrackerOptions lines;
   EstimatorOptions estimator;
+  LoopOptions loop;                // loop closure (stereo only)
   PipelineOptions pipeline;
   SensorOptions sensor;            // the stereo-IMU sensor module's stream and driver (linnet live)
 
@@ -53,6 +55,7 @@ struct Config {
     v.section("points", points);
     v.section("lines", lines);
     v.section("estimator", estimator);
+    v.section("loop", loop);
     v.section("pipeline", pipeline);
     v.section("sensor", sensor);
   }

@@ -45,6 +45,8 @@ struct RunSummary {
   Pose extrinsics_correction;             // the last pose's online rig correction T_B_R (cameras at T_B_R * T_B_Ci)
   bool time_offset_estimated = false;     // estimator.time_offset.estimate
   double time_offset_s = 0.0;             // the last pose's camera-to-IMU time offset (camera stamp - capture), s
+  bool loop_enabled = false;              // loop.enabled (and stereo)
+  std::vector<LoopEvent> loops;           // loops closed
   std::vector<std::string> warnings;      // accepted but worth knowing (the dataset's, and the runner's)
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;

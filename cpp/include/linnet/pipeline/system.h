@@ -22,11 +22,13 @@
 #include <opencv2/core.hpp>
 
 #include "linnet/estimator/estimator.h"
+#include "linnet/loop/loop_closer.h"
 #include "linnet/pipeline/config.h"
 
 namespace linnet {
 
-/// The 3D map: the window's point landmarks and the line map (lines that left the window stay), in W.
+/// The 3D map: the window's point landmarks and the line map (lines that left the window stay), in W (loop-corrected
+/// when loop closure is on: each line by the correction at its last observation).
 struct SystemMap {
   std::vector<Vec3> points;
   std::vector<MapLine> lines;
@@ -34,7 +36,12 @@ struct SystemMap {
 
 /// Everything the System reports for one processed frame.
 struct FrameResult {
-  EstimatorOutput estimate;
+  EstimatorOutput estimate;  // the odometry (the estimator's output, never changed by loop closure)
+  // The System's pose: the odometry mapped into the loop-corrected world (config.loop). In the callback, with the
+  // correction known at that time; in trajectory() after finish(), with the final correction of the frame's
+  // keyframe. Equal to estimate.T_W_B / v_W when loop closure is off or has found no loop.
+  Pose T_W_B;
+  Vec3 v_W = Vec3::Zero();
   int tracked_points = 0;  // points delivered by the front-end
   int stereo_points = 0;   // of which matched in the right image
   int tracked_lines = 0;   // lines delivered by the front-end
@@ -48,6 +55,7 @@ struct FrameResult {
   double point_cpu_ms = 0.0;
   double line_cpu_ms = 0.0;
   double backend_cpu_ms = 0.0;
+  double loop_cpu_ms = 0.0;  // loop closer (keyframes only)
 };
 
 class System {
@@ -79,6 +87,8 @@ class System {
   SystemMap map() const;
   /// Frames dropped in real-time mode (or frames the IMU never covered).
   int droppedFrames() const { return dropped_.load(); }
+  /// Loops closed so far (empty when config.loop is off); complete after finish().
+  std::vector<LoopEvent> loops() const;
   const Config& config() const { return config_; }
 
  private:

@@ -1,0 +1,66 @@
+// Options of the loop closer (loop_closer.h): candidate search, geometric verification and the 4-DoF pose graph.
+#pragma once
+
+namespace linnet {
+
+struct LoopOptions {
+  bool enabled = false;                // detect loops among the keyframes and correct the trajectory and map
+  // Candidate search. The odometry drifts slowly, so a place seen before is looked for around the keyframe's
+  // position predicted with the current correction, not in the whole database.
+  double min_time_gap_s = 20.0;        // a candidate keyframe is at least this much older, s
+  double search_radius_m = 1.0;        // radius around the predicted position, m ...
+  double search_radius_per_m = 0.03;   // ... plus this fraction of the path travelled since the candidate
+  double max_view_angle_deg = 35.0;    // largest angle between the two keyframes' optical axes, deg
+  int max_candidates = 3;              // nearest candidates verified per keyframe
+  int min_keyframes_between_loops = 5; // keyframes after an accepted loop before the next is looked for
+  // Geometric verification (place_matcher.h).
+  int orb_patch_px = 31;               // ORB descriptor patch side, pixels
+  int corners = 400;                   // FAST corners described per keyframe besides the tracked ones
+  int fast_threshold = 20;             // their FAST threshold
+  int max_hamming = 64;                // largest descriptor distance of a match, bits (of 256)
+  double match_ratio = 0.8;            // best / second-best descriptor distance
+  int min_inliers = 25;                // PnP RANSAC inliers for a loop
+  double ransac_px = 2.0;              // PnP RANSAC reprojection threshold, pixels
+  double max_yaw_change_deg = 30.0;    // the loop's yaw correction must be smaller, deg
+  // Pose graph (pose_graph.h): x, y, z and yaw per keyframe; roll and pitch stay the odometry's (IMU-observable).
+  int sequential_edges = 4;            // odometry edges from each keyframe to the previous ones
+  double odometry_sigma_m = 0.005;     // odometry edge sigma, m ...
+  double odometry_sigma_per_m = 0.01;  // ... plus this fraction of the edge length
+  double odometry_sigma_yaw_deg = 0.05;  // odometry edge yaw sigma, deg
+  double loop_sigma_m = 0.01;          // loop edge sigma, m
+  double loop_sigma_yaw_deg = 0.2;     // loop edge yaw sigma, deg
+  double loop_huber = 0.0;             // Huber threshold of a loop edge, sigmas (0: none; loops are gated by
+                                       // verification and by agreement with the corrected odometry instead)
+  int max_iterations = 30;             // Levenberg-Marquardt iterations per pose-graph solve
+
+  template <class V>
+  void visit(V& v) {
+    v("enabled", enabled, "detect loops and correct the trajectory and map (4-DoF pose graph)");
+    v("min_time_gap_s", min_time_gap_s, "a loop candidate is at least this much older, s", 0.0, 1e6);
+    v("search_radius_m", search_radius_m, "candidate search radius around the predicted position, m", 0.01, 1e3);
+    v("search_radius_per_m", search_radius_per_m, "added search radius per metre travelled since the candidate", 0.0,
+      1.0);
+    v("max_view_angle_deg", max_view_angle_deg, "largest angle between the optical axes of a loop, deg", 1.0, 180.0);
+    v("max_candidates", max_candidates, "nearest candidates verified per keyframe", 1, 100);
+    v("min_keyframes_between_loops", min_keyframes_between_loops, "keyframes after a loop before the next search",
+      0, 100000);
+    v("orb_patch_px", orb_patch_px, "ORB descriptor patch side, pixels", 7, 101);
+    v("corners", corners, "FAST corners described per keyframe besides the tracked ones", 0, 100000);
+    v("fast_threshold", fast_threshold, "FAST threshold of those corners", 1, 255);
+    v("max_hamming", max_hamming, "largest descriptor distance of a match, bits", 1, 256);
+    v("match_ratio", match_ratio, "best / second-best descriptor distance", 0.1, 1.0);
+    v("min_inliers", min_inliers, "PnP RANSAC inliers for a loop", 6, 100000);
+    v("ransac_px", ransac_px, "PnP RANSAC reprojection threshold, pixels", 0.1, 100.0);
+    v("max_yaw_change_deg", max_yaw_change_deg, "largest yaw correction of one loop, deg", 0.1, 180.0);
+    v("sequential_edges", sequential_edges, "odometry edges from each keyframe to the previous ones", 1, 100);
+    v("odometry_sigma_m", odometry_sigma_m, "odometry edge sigma, m", 1e-6, 10.0);
+    v("odometry_sigma_per_m", odometry_sigma_per_m, "odometry edge sigma per metre of edge length", 0.0, 1.0);
+    v("odometry_sigma_yaw_deg", odometry_sigma_yaw_deg, "odometry edge yaw sigma, deg", 1e-6, 90.0);
+    v("loop_sigma_m", loop_sigma_m, "loop edge sigma, m", 1e-6, 10.0);
+    v("loop_sigma_yaw_deg", loop_sigma_yaw_deg, "loop edge yaw sigma, deg", 1e-6, 90.0);
+    v("loop_huber", loop_huber, "Huber threshold of a loop edge, sigmas (0: none)", 0.0, 100.0);
+    v("max_iterations", max_iterations, "Levenberg-Marquardt iterations per pose-graph solve", 1, 1000);
+  }
+};
+
+}  // namespace linnet

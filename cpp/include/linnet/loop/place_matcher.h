@@ -1,0 +1,59 @@
+// What the loop closer keeps of a keyframe to recognise its place later, and the geometric verification of a loop.
+// A keyframe keeps ORB descriptors (Rublee et al., "ORB: an efficient alternative to SIFT or SURF", ICCV 2011) of
+// two sets: its tracked corners with their stereo-triangulated positions (3D), and many more FAST corners of its
+// left image (2D only). The tracked set alone repeats poorly between two visits (a tracker re-detects corners only
+// where tracks are missing), so a loop is verified by matching one keyframe's 3D set to the other's dense 2D set and
+// solving PnP in RANSAC (as VINS-Mono does with its extra BRIEF corners).
+#pragma once
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "linnet/core/frame_observations.h"
+#include "linnet/core/pose.h"
+
+namespace linnet {
+
+class CameraModel;
+
+struct PlaceFeatures {
+  std::vector<Vec3> p_C;    // tracked corners with stereo depth: positions in cam0
+  cv::Mat descriptors_3d;   // their ORB descriptors, one 32-byte row each (CV_8U)
+  std::vector<Vec2> uv;     // every described corner (tracked and detected): normalised, undistorted cam0 coordinates
+  cv::Mat descriptors_2d;   // their ORB descriptors
+};
+
+struct PlaceDescription {
+  int patch_px = 31;      // ORB patch side, pixels
+  int corners = 400;      // FAST corners described besides the tracked ones (strongest first)
+  int fast_threshold = 20;
+};
+
+/// Describes a keyframe: the tracked corners (`points`, cam0 pixels px0), triangulated where matched in cam1
+/// (T_C1_C0: cam0 -> cam1), and the strongest FAST corners of `left`. Corners too close to the border for the patch
+/// are left out.
+PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const std::vector<PointObservation>& points,
+                            const Pose& T_C1_C0, const PlaceDescription& options);
+
+struct PlaceMatchOptions {
+  int max_hamming = 64;      // bits
+  double match_ratio = 0.8;  // best / second best
+  int min_inliers = 25;
+  double ransac_px = 2.0;    // pixels
+  double focal_px = 458.0;   // converts ransac_px to normalised units
+};
+
+struct PlaceMatch {
+  bool ok = false;
+  int matches = 0;           // descriptor matches that passed the ratio test
+  int inliers = 0;           // PnP RANSAC inliers
+  Pose T_Cold_Cnew;          // the new keyframe's cam0 in the old one's cam0
+};
+
+/// Matches the new keyframe's 3D corners to the old keyframe's 2D corners and solves the old camera's pose from
+/// those pairs (EPnP in RANSAC, then iterative refinement on the inliers); if that fails, the other way round.
+/// Deterministic.
+PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options);
+
+}  // namespace linnet

@@ -1,0 +1,69 @@
+// 4-DoF pose graph over keyframes (x, y, z, yaw), as in VINS-Mono's loop correction (Qin, Li, Shen, "VINS-Mono",
+// IEEE T-RO 2018, sec. VIII): with an IMU, roll and pitch are observable and drift-free, so only the position and
+// the yaw are corrected. Each keyframe keeps the odometry's roll and pitch; an edge i -> j measures the position
+// of j in i's frame and the yaw difference. Odometry edges link a keyframe to its predecessors, loop edges link it
+// to an older keyframe of the same place.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "linnet/core/pose.h"
+
+namespace linnet {
+
+/// Yaw of a rotation (z-y-x Euler angles, z up), radians.
+double yawOf(const Mat3& R);
+/// Rotation about z by `yaw` radians.
+Mat3 rotZ(double yaw);
+
+struct PoseGraphEdge {
+  std::size_t i = 0, j = 0;  // node indices
+  Vec3 t_ij = Vec3::Zero();  // position of j in i's frame (the full rotation of i), m
+  double yaw_ij = 0.0;       // yaw_j - yaw_i, rad
+  double sigma_t = 0.01;     // m
+  double sigma_yaw = 1e-3;   // rad
+  bool loop = false;         // loop edges get a Huber loss
+};
+
+struct PoseGraphOptions {
+  double loop_huber = 0.0;  // Huber threshold of loop edges, in sigmas (0: no robust loss)
+  int max_iterations = 30;
+};
+
+class PoseGraph {
+ public:
+  /// Adds a node at its odometry pose (roll and pitch are kept from it); returns its index.
+  std::size_t addNode(const Pose& T_W_B);
+  /// The edge from the odometry poses of nodes i and j (both added).
+  PoseGraphEdge odometryEdge(std::size_t i, std::size_t j, double sigma_t, double sigma_yaw) const;
+  /// A loop edge from a measured relative pose T_Bi_Bj (node i older).
+  PoseGraphEdge loopEdge(std::size_t i, std::size_t j, const Pose& T_Bi_Bj, double sigma_t, double sigma_yaw) const;
+  void addEdge(const PoseGraphEdge& e);
+
+  /// Optimises every node but node 0 (held: it fixes the gauge), starting from the current estimates. Returns
+  /// false if the solver failed (the estimates are then unchanged).
+  bool optimise(const PoseGraphOptions& options);
+
+  std::size_t size() const { return nodes_.size(); }
+  const std::vector<PoseGraphEdge>& edges() const { return edges_; }
+  /// Current estimate of node k (odometry roll and pitch, optimised yaw and position).
+  Pose pose(std::size_t k) const;
+  const Pose& odometryPose(std::size_t k) const { return nodes_[k].odometry; }
+  /// T_Wcorrected_Wodometry of node k: maps its odometry pose onto its estimate (a yaw rotation and a shift).
+  Pose correction(std::size_t k) const;
+  /// Sets node k's estimate (e.g. a new node initialised with the latest correction).
+  void setEstimate(std::size_t k, const Vec3& p, double yaw);
+
+ private:
+  struct Node {
+    Pose odometry;
+    Mat3 R_tilt;  // roll and pitch: R = rotZ(yaw) * R_tilt
+    double p[3];
+    double yaw;
+  };
+  std::vector<Node> nodes_;
+  std::vector<PoseGraphEdge> edges_;
+};
+
+}  // namespace linnet

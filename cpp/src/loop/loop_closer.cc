@@ -1,0 +1,121 @@
+#include "linnet/loop/loop_closer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+namespace linnet {
+
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+double wrapPi(double a) { return std::atan2(std::sin(a), std::cos(a)); }
+
+}  // namespace
+
+LoopCloser::LoopCloser(const LoopOptions& options, const CameraModel& cam0, const Pose& T_B_C0, const Pose& T_C1_C0)
+    : options_(options), cam0_(cam0), T_B_C0_(T_B_C0), T_C1_C0_(T_C1_C0) {}
+
+bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left,
+                             const std::vector<PointObservation>& points) {
+  Keyframe kf;
+  kf.t = t;
+  if (!keyframes_.empty()) {
+    const Pose& prev = graph_.odometryPose(keyframes_.size() - 1);
+    kf.path_m = keyframes_.back().path_m + (T_W_B.p - prev.p).norm();
+  }
+  const Pose correction = latestCorrection();
+  const std::size_t k = graph_.addNode(T_W_B);
+  const Pose start = correction * T_W_B;
+  graph_.setEstimate(k, start.p, yawOf(start.R()));
+  const std::size_t first = k > static_cast<std::size_t>(options_.sequential_edges)
+                                ? k - static_cast<std::size_t>(options_.sequential_edges)
+                                : 0;
+  for (std::size_t i = first; i < k; ++i) {
+    const double length = (graph_.odometryPose(k).p - graph_.odometryPose(i).p).norm();
+    graph_.addEdge(graph_.odometryEdge(i, k, options_.odometry_sigma_m + options_.odometry_sigma_per_m * length,
+                                       options_.odometry_sigma_yaw_deg * kDegToRad));
+  }
+  PlaceDescription pd;
+  pd.patch_px = options_.orb_patch_px;
+  pd.corners = options_.corners;
+  pd.fast_threshold = options_.fast_threshold;
+  kf.place = describePlace(left, cam0_, points, T_C1_C0_, pd);
+  keyframes_.push_back(std::move(kf));
+  if (any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops))
+    return false;
+  return tryLoop(k);
+}
+
+bool LoopCloser::tryLoop(std::size_t k) {
+  const Keyframe& now = keyframes_[k];
+  const Pose P_new = graph_.pose(k);
+  const Vec3 axis_new = P_new.R() * T_B_C0_.R().col(2);
+  const double cos_max = std::cos(options_.max_view_angle_deg * kDegToRad);
+  std::vector<std::pair<double, std::size_t>> candidates;
+  for (std::size_t j = 0; j < k; ++j) {
+    const Keyframe& old = keyframes_[j];
+    if (toSeconds(now.t - old.t) < options_.min_time_gap_s) break;  // keyframes are in time order
+    const Pose P_old = graph_.pose(j);
+    const double d = (P_new.p - P_old.p).norm();
+    const double radius = options_.search_radius_m + options_.search_radius_per_m * (now.path_m - old.path_m);
+    if (d > radius) continue;
+    if (axis_new.dot(P_old.R() * T_B_C0_.R().col(2)) < cos_max) continue;
+    candidates.emplace_back(d, j);
+  }
+  std::sort(candidates.begin(), candidates.end());
+  if (candidates.size() > static_cast<std::size_t>(options_.max_candidates))
+    candidates.resize(static_cast<std::size_t>(options_.max_candidates));
+
+  PlaceMatchOptions mo;
+  mo.max_hamming = options_.max_hamming;
+  mo.match_ratio = options_.match_ratio;
+  mo.min_inliers = options_.min_inliers;
+  mo.ransac_px = options_.ransac_px;
+  mo.focal_px = cam0_.fx();
+  for (const auto& [distance, j] : candidates) {
+    const PlaceMatch m = matchPlaces(keyframes_[j].place, now.place, mo);
+    if (!m.ok) continue;
+    const Pose T_Bj_Bk = T_B_C0_ * m.T_Cold_Cnew * T_B_C0_.inverse();
+    // The measured relative pose must agree with the corrected odometry within the search bounds.
+    const Pose predicted = graph_.pose(j).inverse() * P_new;
+    const double radius =
+        options_.search_radius_m + options_.search_radius_per_m * (now.path_m - keyframes_[j].path_m);
+    const double dyaw = wrapPi(yawOf(graph_.pose(j).R() * T_Bj_Bk.R()) - yawOf(P_new.R()));
+    if ((T_Bj_Bk.p - predicted.p).norm() > radius ||
+        std::abs(dyaw) > options_.max_yaw_change_deg * kDegToRad)
+      continue;
+    graph_.addEdge(graph_.loopEdge(j, k, T_Bj_Bk, options_.loop_sigma_m, options_.loop_sigma_yaw_deg * kDegToRad));
+    PoseGraphOptions po;
+    po.loop_huber = options_.loop_huber;
+    po.max_iterations = options_.max_iterations;
+    if (!graph_.optimise(po)) continue;
+    LoopEvent e;
+    e.t_new = now.t;
+    e.t_old = keyframes_[j].t;
+    e.inliers = m.inliers;
+    const Pose after = graph_.pose(k);
+    e.correction_m = (after.p - P_new.p).norm();
+    e.correction_yaw_deg = std::abs(wrapPi(yawOf(after.R()) - yawOf(P_new.R()))) / kDegToRad;
+    loops_.push_back(e);
+    last_loop_index_ = k;
+    any_loop_ = true;
+    return true;
+  }
+  return false;
+}
+
+Pose LoopCloser::correctionAt(Timestamp t) const {
+  const auto it = std::upper_bound(keyframes_.begin(), keyframes_.end(), t,
+                                   [](Timestamp x, const Keyframe& kf) { return x < kf.t; });
+  if (it == keyframes_.begin()) return Pose::identity();
+  return graph_.correction(static_cast<std::size_t>(it - keyframes_.begin()) - 1);
+}
+
+Pose LoopCloser::latestCorrection() const {
+  if (keyframes_.empty()) return Pose::identity();
+  return graph_.correction(keyframes_.size() - 1);
+}
+
+}  // namespace linnet

@@ -1,0 +1,137 @@
+#include "linnet/loop/place_matcher.h"
+
+#include <cmath>
+#include <limits>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+
+#include "linnet/camera/camera_model.h"
+#include "linnet/geometry/triangulation.h"
+
+namespace linnet {
+
+PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const std::vector<PointObservation>& points,
+                            const Pose& T_C1_C0, const PlaceDescription& options) {
+  PlaceFeatures f;
+  if (left.empty()) return f;
+  // Upright descriptors (angle 0): the IMU keeps roll and pitch, and loops are searched within a bounded view angle.
+  const float size = static_cast<float>(options.patch_px);
+  std::vector<cv::KeyPoint> kps;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    cv::KeyPoint kp(static_cast<float>(points[i].px0.x()), static_cast<float>(points[i].px0.y()), size, 0.0f);
+    kp.class_id = static_cast<int>(i);
+    kps.push_back(kp);
+  }
+  const int n_tracked = static_cast<int>(kps.size());
+  if (options.corners > 0) {
+    std::vector<cv::KeyPoint> corners;
+    cv::FAST(left, corners, options.fast_threshold, true);
+    cv::KeyPointsFilter::retainBest(corners, options.corners);
+    for (cv::KeyPoint& c : corners) {
+      c.size = size;
+      c.angle = 0.0f;
+      c.octave = 0;
+      c.class_id = -1;
+      kps.push_back(c);
+    }
+  }
+  // One pyramid level: descriptors at the given corners only (ORB keeps the keypoints' angle when they are given).
+  cv::Ptr<cv::ORB> orb = cv::ORB::create(std::max(1, static_cast<int>(kps.size())), 1.2f, 1, options.patch_px, 0, 2,
+                                         cv::ORB::HARRIS_SCORE, options.patch_px);
+  cv::Mat desc;
+  orb->compute(left, kps, desc);
+  if (desc.empty()) return f;
+
+  TriangulationOptions tri;
+  tri.min_depth_m = 0.1;
+  tri.max_depth_m = 20.0;
+  tri.min_parallax_deg = 0.2;
+  tri.max_reprojection = 0.005;
+  const std::vector<Pose> views = {Pose::identity(), T_C1_C0.inverse()};
+  for (int k = 0; k < static_cast<int>(kps.size()); ++k) {
+    const cv::KeyPoint& kp = kps[static_cast<std::size_t>(k)];
+    Vec2 uv;
+    if (kp.class_id >= 0 && kp.class_id < n_tracked) {
+      const PointObservation& p = points[static_cast<std::size_t>(kp.class_id)];
+      uv = p.uv0;
+      Vec3 X;
+      if (p.has_right && triangulateChecked(views, {p.uv0, p.uv1}, tri, &X) == TriangulationStatus::kOk) {
+        f.p_C.push_back(X);
+        f.descriptors_3d.push_back(desc.row(k));
+      }
+    } else if (!cam0.undistort(Vec2(kp.pt.x, kp.pt.y), &uv)) {
+      continue;
+    }
+    f.uv.push_back(uv);
+    f.descriptors_2d.push_back(desc.row(k));
+  }
+  return f;
+}
+
+namespace {
+
+// 3D points of `a` (its camera frame) matched to 2D corners of `b`; on success T_Cb_Ca.
+PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options) {
+  PlaceMatch out;
+  if (static_cast<int>(a.p_C.size()) < options.min_inliers || b.descriptors_2d.rows < 2) return out;
+  cv::BFMatcher matcher(cv::NORM_HAMMING, false);
+  std::vector<std::vector<cv::DMatch>> knn;
+  matcher.knnMatch(a.descriptors_3d, b.descriptors_2d, knn, 2);
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  std::vector<int> used(static_cast<std::size_t>(b.descriptors_2d.rows), 0);
+  for (const std::vector<cv::DMatch>& m : knn) {
+    if (m.empty() || m[0].distance > options.max_hamming) continue;
+    if (m.size() > 1 && m[0].distance > options.match_ratio * m[1].distance) continue;
+    if (used[static_cast<std::size_t>(m[0].trainIdx)]++) continue;  // one 3D point per corner
+    const Vec3& X = a.p_C[static_cast<std::size_t>(m[0].queryIdx)];
+    const Vec2& uv = b.uv[static_cast<std::size_t>(m[0].trainIdx)];
+    object.emplace_back(X.x(), X.y(), X.z());
+    image.emplace_back(uv.x(), uv.y());
+  }
+  out.matches = static_cast<int>(object.size());
+  if (out.matches < options.min_inliers) return out;
+  cv::Mat rvec, tvec;
+  std::vector<int> inliers;
+  const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
+  const bool solved = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200,
+                                         static_cast<float>(options.ransac_px / options.focal_px), 0.99, inliers,
+                                         cv::SOLVEPNP_EPNP);
+  out.inliers = static_cast<int>(inliers.size());
+  if (!solved || out.inliers < options.min_inliers) return out;
+  std::vector<cv::Point3d> obj_in;
+  std::vector<cv::Point2d> img_in;
+  for (int k : inliers) {
+    obj_in.push_back(object[static_cast<std::size_t>(k)]);
+    img_in.push_back(image[static_cast<std::size_t>(k)]);
+  }
+  cv::solvePnP(obj_in, img_in, K, cv::noArray(), rvec, tvec, true, cv::SOLVEPNP_ITERATIVE);
+  cv::Mat Rcv;
+  cv::Rodrigues(rvec, Rcv);
+  Mat3 R;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R(r, c) = Rcv.at<double>(r, c);
+  const Vec3 t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+  if (!R.allFinite() || !t.allFinite()) return out;
+  out.T_Cold_Cnew = Pose(R, t);  // x_b = R x_a + t: T_Cb_Ca
+  out.ok = true;
+  return out;
+}
+
+}  // namespace
+
+PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options) {
+  PlaceMatch m = solveOneWay(new_kf, old_kf, options);  // T_Cold_Cnew
+  if (m.ok) return m;
+  PlaceMatch r = solveOneWay(old_kf, new_kf, options);   // T_Cnew_Cold
+  if (!r.ok) {
+    r.matches = std::max(r.matches, m.matches);
+    r.inliers = std::max(r.inliers, m.inliers);
+    return r;
+  }
+  r.T_Cold_Cnew = r.T_Cold_Cnew.inverse();
+  return r;
+}
+
+}  // namespace linnet

@@ -1,0 +1,141 @@
+#include "linnet/loop/pose_graph.h"
+
+#include <cmath>
+
+#include <ceres/ceres.h>
+
+namespace linnet {
+
+double yawOf(const Mat3& R) { return std::atan2(R(1, 0), R(0, 0)); }
+
+Mat3 rotZ(double yaw) {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  Mat3 R;
+  R << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0;
+  return R;
+}
+
+namespace {
+
+template <typename T>
+T wrapAngle(const T& a) {
+  const T two_pi = T(2.0 * M_PI);
+  T r = a;
+  while (r > T(M_PI)) r -= two_pi;
+  while (r < T(-M_PI)) r += two_pi;
+  return r;
+}
+
+// r = [ (R_i^T (p_j - p_i) - t_ij) / sigma_t ; wrap(yaw_j - yaw_i - yaw_ij) / sigma_yaw ], R_i = rotZ(yaw_i) R_tilt_i.
+struct EdgeCost {
+  EdgeCost(const PoseGraphEdge& e, const Mat3& R_tilt_i) : e_(e), R_tilt_i_(R_tilt_i) {}
+
+  template <typename T>
+  bool operator()(const T* p_i, const T* yaw_i, const T* p_j, const T* yaw_j, T* r) const {
+    const T c = cos(yaw_i[0]), s = sin(yaw_i[0]);
+    // d = rotZ(yaw_i)^T (p_j - p_i), then R_tilt^T d.
+    const T dx = p_j[0] - p_i[0], dy = p_j[1] - p_i[1], dz = p_j[2] - p_i[2];
+    const T d[3] = {c * dx + s * dy, -s * dx + c * dy, dz};
+    for (int k = 0; k < 3; ++k) {
+      const T tk = R_tilt_i_(0, k) * d[0] + R_tilt_i_(1, k) * d[1] + R_tilt_i_(2, k) * d[2];
+      r[k] = (tk - T(e_.t_ij[k])) / T(e_.sigma_t);
+    }
+    r[3] = wrapAngle(yaw_j[0] - yaw_i[0] - T(e_.yaw_ij)) / T(e_.sigma_yaw);
+    return true;
+  }
+
+  PoseGraphEdge e_;
+  Mat3 R_tilt_i_;
+};
+
+}  // namespace
+
+std::size_t PoseGraph::addNode(const Pose& T_W_B) {
+  Node n;
+  n.odometry = T_W_B;
+  const Mat3 R = T_W_B.R();
+  n.yaw = yawOf(R);
+  n.R_tilt = rotZ(-n.yaw) * R;
+  for (int k = 0; k < 3; ++k) n.p[k] = T_W_B.p[k];
+  nodes_.push_back(n);
+  return nodes_.size() - 1;
+}
+
+PoseGraphEdge PoseGraph::odometryEdge(std::size_t i, std::size_t j, double sigma_t, double sigma_yaw) const {
+  const Pose& a = nodes_[i].odometry;
+  const Pose& b = nodes_[j].odometry;
+  PoseGraphEdge e;
+  e.i = i;
+  e.j = j;
+  e.t_ij = a.q.conjugate() * (b.p - a.p);
+  e.yaw_ij = wrapAngle(nodes_[j].yaw - nodes_[i].yaw);
+  e.sigma_t = sigma_t;
+  e.sigma_yaw = sigma_yaw;
+  return e;
+}
+
+PoseGraphEdge PoseGraph::loopEdge(std::size_t i, std::size_t j, const Pose& T_Bi_Bj, double sigma_t,
+                                  double sigma_yaw) const {
+  PoseGraphEdge e;
+  e.i = i;
+  e.j = j;
+  e.t_ij = T_Bi_Bj.p;
+  // j's yaw if it had i's odometry attitude composed with the measured relative rotation.
+  e.yaw_ij = wrapAngle(yawOf(nodes_[i].odometry.R() * T_Bi_Bj.R()) - nodes_[i].yaw);
+  e.sigma_t = sigma_t;
+  e.sigma_yaw = sigma_yaw;
+  e.loop = true;
+  return e;
+}
+
+void PoseGraph::addEdge(const PoseGraphEdge& e) { edges_.push_back(e); }
+
+bool PoseGraph::optimise(const PoseGraphOptions& options) {
+  if (nodes_.size() < 2 || edges_.empty()) return true;
+  std::vector<Node> backup = nodes_;
+  ceres::Problem::Options po;
+  po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  for (const PoseGraphEdge& e : edges_) {
+    auto* cost = new ceres::AutoDiffCostFunction<EdgeCost, 4, 3, 1, 3, 1>(new EdgeCost(e, nodes_[e.i].R_tilt));
+    ceres::LossFunction* loss =
+        e.loop && options.loop_huber > 0.0 ? new ceres::HuberLoss(options.loop_huber) : nullptr;
+    problem.AddResidualBlock(cost, loss, nodes_[e.i].p, &nodes_[e.i].yaw, nodes_[e.j].p, &nodes_[e.j].yaw);
+  }
+  if (problem.HasParameterBlock(nodes_[0].p)) {
+    problem.SetParameterBlockConstant(nodes_[0].p);
+    problem.SetParameterBlockConstant(&nodes_[0].yaw);
+  }
+  ceres::Solver::Options so;
+  so.max_num_iterations = options.max_iterations;
+  so.num_threads = 1;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
+    so.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+    if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE))
+      so.linear_solver_type = ceres::DENSE_QR;
+  }
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  if (!summary.IsSolutionUsable()) {
+    nodes_ = std::move(backup);
+    return false;
+  }
+  for (Node& n : nodes_) n.yaw = wrapAngle(n.yaw);
+  return true;
+}
+
+Pose PoseGraph::pose(std::size_t k) const {
+  const Node& n = nodes_[k];
+  return Pose(Mat3(rotZ(n.yaw) * n.R_tilt), Vec3(n.p[0], n.p[1], n.p[2]));
+}
+
+Pose PoseGraph::correction(std::size_t k) const { return pose(k) * nodes_[k].odometry.inverse(); }
+
+void PoseGraph::setEstimate(std::size_t k, const Vec3& p, double yaw) {
+  for (int i = 0; i < 3; ++i) nodes_[k].p[i] = p[i];
+  nodes_[k].yaw = yaw;
+}
+
+}  // namespace linnet

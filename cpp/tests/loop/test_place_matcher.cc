@@ -1,0 +1,121 @@
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "linnet/loop/place_matcher.h"
+#include "loop_test_scene.h"
+
+namespace linnet {
+namespace {
+
+// Random 32-byte descriptors.
+cv::Mat randomDescriptors(int n, std::mt19937& rng) {
+  cv::Mat d(n, 32, CV_8U);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < 32; ++c) d.at<unsigned char>(r, c) = static_cast<unsigned char>(byte(rng));
+  return d;
+}
+
+// An old keyframe's 2D corners and a new keyframe's 3D points of the same scene: `n` shared points (same
+// descriptor), `outliers` of them matched to a wrong corner.
+void syntheticPair(const Pose& T_Cold_Cnew, int n, int outliers, PlaceFeatures* old_kf, PlaceFeatures* new_kf) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), depth(2.0, 6.0);
+  const cv::Mat desc = randomDescriptors(n, rng);
+  for (int i = 0; i < n; ++i) {
+    const double z = depth(rng);
+    const Vec3 p_new(u(rng) * 0.6 * z, u(rng) * 0.4 * z, z);
+    const Vec3 p_old = T_Cold_Cnew * p_new;
+    new_kf->p_C.push_back(p_new);
+    new_kf->descriptors_3d.push_back(desc.row(i));
+    Vec2 uv = p_old.head<2>() / p_old.z();
+    if (i < outliers) uv += Vec2(0.05 + 0.01 * i, -0.04);  // a wrong corner with the same descriptor
+    old_kf->uv.push_back(uv);
+    old_kf->descriptors_2d.push_back(desc.row(i));
+  }
+  // Unrelated corners in the old keyframe.
+  const cv::Mat other = randomDescriptors(3 * n, rng);
+  for (int i = 0; i < 3 * n; ++i) {
+    old_kf->uv.push_back(Vec2(u(rng) * 0.6, u(rng) * 0.4));
+    old_kf->descriptors_2d.push_back(other.row(i));
+  }
+}
+
+TEST(PlaceMatcher, RecoversTheRelativePoseDespiteWrongMatches) {
+  const Pose T_Cold_Cnew(expSO3(Vec3(0.02, -0.25, 0.03)), Vec3(0.4, -0.05, 0.3));
+  PlaceFeatures old_kf, new_kf;
+  syntheticPair(T_Cold_Cnew, 80, 20, &old_kf, &new_kf);
+  PlaceMatchOptions o;
+  o.min_inliers = 30;
+  const PlaceMatch m = matchPlaces(old_kf, new_kf, o);
+  ASSERT_TRUE(m.ok);
+  EXPECT_EQ(m.matches, 80);
+  EXPECT_EQ(m.inliers, 60);
+  EXPECT_LT((m.T_Cold_Cnew.p - T_Cold_Cnew.p).norm(), 1e-6);
+  EXPECT_LT(logSO3(m.T_Cold_Cnew.q.conjugate() * T_Cold_Cnew.q).norm(), 1e-6);
+}
+
+TEST(PlaceMatcher, SolvesTheOtherWayWhenOnlyTheOldKeyframeHasDepth) {
+  const Pose T_Cold_Cnew(expSO3(Vec3(0.0, 0.2, 0.0)), Vec3(-0.3, 0.0, 0.2));
+  // Built as "new has depth", then swapped: the old keyframe has the 3D points, the new one the corners.
+  PlaceFeatures a, b;
+  syntheticPair(T_Cold_Cnew.inverse(), 60, 0, &a, &b);  // a: 2D corners seen from "new", b: 3D points of "old"
+  PlaceFeatures old_kf = b, new_kf = a;
+  PlaceMatchOptions o;
+  o.min_inliers = 30;
+  const PlaceMatch m = matchPlaces(old_kf, new_kf, o);
+  ASSERT_TRUE(m.ok);
+  EXPECT_LT((m.T_Cold_Cnew.p - T_Cold_Cnew.p).norm(), 1e-6);
+}
+
+TEST(PlaceMatcher, RejectsTooFewMatches) {
+  PlaceFeatures old_kf, new_kf;
+  syntheticPair(Pose::identity(), 20, 0, &old_kf, &new_kf);
+  PlaceMatchOptions o;
+  o.min_inliers = 25;
+  EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
+  // Unrelated descriptors: nothing passes the distance and ratio tests.
+  std::mt19937 rng(3);
+  new_kf.descriptors_3d = randomDescriptors(new_kf.descriptors_3d.rows, rng);
+  const PlaceMatch m = matchPlaces(old_kf, new_kf, o);
+  EXPECT_FALSE(m.ok);
+  EXPECT_LT(m.matches, 5);
+}
+
+TEST(PlaceMatcher, DescribesTrackedCornersWithStereoDepthAndMoreCorners) {
+  const test::WallScene scene;
+  const Pose T_W_C = scene.cameraAt(Vec3(0.3, 0.0, 1.2), 0.1);
+  const cv::Mat image = scene.render(T_W_C);
+  const std::vector<PointObservation> tracked = scene.trackedCorners(image, T_W_C, 120);
+  ASSERT_GE(tracked.size(), 100u);
+  PlaceDescription d;
+  d.corners = 300;
+  const PlaceFeatures f = describePlace(image, *scene.camera, tracked, scene.T_C1_C0, d);
+  EXPECT_GE(f.p_C.size(), 90u);
+  EXPECT_EQ(f.descriptors_3d.rows, static_cast<int>(f.p_C.size()));
+  EXPECT_GE(f.uv.size(), 300u);
+  EXPECT_EQ(f.descriptors_2d.rows, static_cast<int>(f.uv.size()));
+  // Stereo depths: every point lies on the wall.
+  for (const Vec3& p_C : f.p_C) EXPECT_NEAR((T_W_C * p_C).y(), scene.wall_y, 0.02 * scene.wall_y);
+}
+
+TEST(PlaceMatcher, MatchesTwoViewsOfTheSamePlace) {
+  const test::WallScene scene;
+  const Pose T_W_Cold = scene.cameraAt(Vec3(0.0, 0.0, 1.2), 0.0);
+  const Pose T_W_Cnew = scene.cameraAt(Vec3(0.35, 0.4, 1.1), 0.12);
+  PlaceDescription d;
+  const cv::Mat img_old = scene.render(T_W_Cold), img_new = scene.render(T_W_Cnew);
+  const PlaceFeatures f_old =
+      describePlace(img_old, *scene.camera, scene.trackedCorners(img_old, T_W_Cold, 150), scene.T_C1_C0, d);
+  const PlaceFeatures f_new =
+      describePlace(img_new, *scene.camera, scene.trackedCorners(img_new, T_W_Cnew, 150), scene.T_C1_C0, d);
+  const PlaceMatch m = matchPlaces(f_old, f_new, PlaceMatchOptions{});
+  ASSERT_TRUE(m.ok) << m.matches << " matches, " << m.inliers << " inliers";
+  const Pose truth = T_W_Cold.inverse() * T_W_Cnew;
+  EXPECT_LT((m.T_Cold_Cnew.p - truth.p).norm(), 0.03);
+  EXPECT_LT(logSO3(m.T_Cold_Cnew.q.conjugate() * truth.q).norm(), 0.01);
+}
+
+}  // namespace
+}  // namespace linnet

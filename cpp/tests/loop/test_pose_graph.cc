@@ -1,0 +1,121 @@
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "linnet/loop/pose_graph.h"
+
+namespace linnet {
+namespace {
+
+// A pose with the given yaw and a fixed small tilt (roll and pitch), at p.
+Pose tilted(double yaw, const Vec3& p) {
+  const Mat3 tilt = (expSO3(Vec3(0.05, -0.03, 0.0))).toRotationMatrix();
+  return Pose(Mat3(rotZ(yaw) * tilt), p);
+}
+
+// Keyframes around a circle of radius 3 m, back to the start: truth, and odometry that drifts in yaw and position.
+struct Circle {
+  std::vector<Pose> truth, odometry;
+};
+
+Circle makeCircle(int n, double yaw_drift_per_step, const Vec3& shift_per_step) {
+  Circle c;
+  for (int k = 0; k <= n; ++k) {
+    const double a = 2.0 * M_PI * k / n;
+    c.truth.push_back(tilted(a + M_PI / 2, Vec3(3.0 * std::cos(a), 3.0 * std::sin(a), 1.0)));
+  }
+  // Odometry: the true increments, each perturbed by a yaw error and a shift (in the previous frame).
+  c.odometry.push_back(c.truth[0]);
+  for (int k = 1; k <= n; ++k) {
+    Pose d = c.truth[static_cast<std::size_t>(k - 1)].inverse() * c.truth[static_cast<std::size_t>(k)];
+    d = Pose(Mat3(d.R()), Vec3(d.p + shift_per_step));
+    Pose next = c.odometry.back() * d;
+    next = Pose(Mat3(rotZ(yaw_drift_per_step) * next.R()), next.p);
+    c.odometry.push_back(next);
+  }
+  return c;
+}
+
+double yawError(const Pose& a, const Pose& b) {
+  return std::abs(std::remainder(yawOf(a.R()) - yawOf(b.R()), 2.0 * M_PI));
+}
+
+TEST(PoseGraph, YawAndRotZAreInverse) {
+  for (double yaw : {-3.0, -1.0, 0.0, 0.5, 3.1}) EXPECT_NEAR(yawOf(rotZ(yaw)), yaw, 1e-12);
+  // A rotation about z adds to the yaw of a tilted attitude (z-y-x decomposition).
+  const Mat3 R = tilted(0.2, Vec3::Zero()).R();
+  EXPECT_NEAR(yawOf(rotZ(0.5) * R), yawOf(R) + 0.5, 1e-12);
+}
+
+TEST(PoseGraph, OdometryAloneKeepsTheOdometry) {
+  const Circle c = makeCircle(40, 0.002, Vec3(0.01, 0.0, 0.0));
+  PoseGraph g;
+  for (const Pose& p : c.odometry) g.addNode(p);
+  for (std::size_t k = 1; k < c.odometry.size(); ++k)
+    for (std::size_t i = (k >= 3 ? k - 3 : 0); i < k; ++i) g.addEdge(g.odometryEdge(i, k, 0.01, 1e-3));
+  ASSERT_TRUE(g.optimise(PoseGraphOptions{}));
+  for (std::size_t k = 0; k < c.odometry.size(); ++k) {
+    EXPECT_LT((g.pose(k).p - c.odometry[k].p).norm(), 1e-9);
+    EXPECT_LT((g.pose(k).R() - c.odometry[k].R()).norm(), 1e-9);
+    EXPECT_LT((g.correction(k).p).norm() + (g.correction(k).R() - Mat3::Identity()).norm(), 1e-9);
+  }
+}
+
+TEST(PoseGraph, ALoopEdgeRemovesTheDriftAndKeepsRollAndPitch) {
+  const int n = 60;
+  const Circle c = makeCircle(n, 0.003, Vec3(0.004, -0.002, 0.001));
+  PoseGraph g;
+  for (const Pose& p : c.odometry) g.addNode(p);
+  for (std::size_t k = 1; k < c.odometry.size(); ++k)
+    for (std::size_t i = (k >= 4 ? k - 4 : 0); i < k; ++i) g.addEdge(g.odometryEdge(i, k, 0.01, 1e-3));
+  const std::size_t last = static_cast<std::size_t>(n);
+  const double drift_before = (c.odometry[last].p - c.truth[last].p).norm();
+  const double yaw_before = yawError(c.odometry[last], c.truth[last]);
+  ASSERT_GT(drift_before, 0.2);
+  ASSERT_GT(yaw_before, 0.1);
+  // The loop: the last keyframe measured against the first, with the true relative pose.
+  g.addEdge(g.loopEdge(0, last, c.truth[0].inverse() * c.truth[last], 1e-3, 1e-4));
+  ASSERT_TRUE(g.optimise(PoseGraphOptions{}));
+  EXPECT_LT((g.pose(last).p - c.truth[last].p).norm(), 0.05 * drift_before);
+  EXPECT_LT(yawError(g.pose(last), c.truth[last]), 0.05 * yaw_before);
+  // Halfway, the error is also reduced (the correction is spread along the loop).
+  const std::size_t mid = last / 2;
+  EXPECT_LT((g.pose(mid).p - c.truth[mid].p).norm(), (c.odometry[mid].p - c.truth[mid].p).norm());
+  for (std::size_t k = 0; k <= last; ++k) {
+    // Roll and pitch are the odometry's: the body z axis in W does not move.
+    EXPECT_LT((g.pose(k).R().row(2) - c.odometry[k].R().row(2)).norm(), 1e-9);
+    // The correction maps the odometry pose onto the estimate, and is a rotation about z.
+    const Pose mapped = g.correction(k) * g.odometryPose(k);
+    EXPECT_LT((mapped.p - g.pose(k).p).norm(), 1e-9);
+    EXPECT_LT((mapped.R() - g.pose(k).R()).norm(), 1e-9);
+    EXPECT_LT((g.correction(k).R() * Vec3::UnitZ() - Vec3::UnitZ()).norm(), 1e-9);
+  }
+  // Node 0 holds the gauge.
+  EXPECT_LT((g.pose(0).p - c.odometry[0].p).norm(), 1e-12);
+}
+
+TEST(PoseGraph, AWrongLoopEdgeIsDampedByTheRobustLoss) {
+  const int n = 60;
+  const Circle c = makeCircle(n, 0.0, Vec3::Zero());  // perfect odometry
+  auto lastError = [&](double huber) {
+    PoseGraph g;
+    for (const Pose& p : c.odometry) g.addNode(p);
+    for (std::size_t k = 1; k < c.odometry.size(); ++k)
+      for (std::size_t i = (k >= 4 ? k - 4 : 0); i < k; ++i) g.addEdge(g.odometryEdge(i, k, 0.01, 1e-3));
+    const std::size_t last = static_cast<std::size_t>(n);
+    // A false loop: 1 m off.
+    g.addEdge(g.loopEdge(0, last, Pose(Mat3::Identity(), Vec3(1.0, 0.0, 0.0)) * (c.truth[0].inverse() * c.truth[last]),
+                         0.01, 1e-3));
+    PoseGraphOptions o;
+    o.loop_huber = huber;
+    EXPECT_TRUE(g.optimise(o));
+    return (g.pose(last).p - c.truth[last].p).norm();
+  };
+  const double plain = lastError(0.0), robust = lastError(1.0);
+  EXPECT_GT(plain, 0.3);
+  EXPECT_LT(robust, 0.2 * plain);
+}
+
+}  // namespace
+}  // namespace linnet
