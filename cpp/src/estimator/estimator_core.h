@@ -48,6 +48,17 @@ class EstimatorCore {
   EstimatorOutput addFrame(const FrameObservations& obs);
   std::vector<Vec3> landmarkPositions() const { return points_.positions(window_); }
   std::vector<MapLine> mapLines() const { return lines_.mapLines(); }
+  std::vector<std::pair<Timestamp, Pose>> windowPoses() const {
+    std::vector<std::pair<Timestamp, Pose>> out;
+    for (int i = 0; i < window_.size(); ++i) out.emplace_back(window_[i].t, window_[i].T_W_B());
+    return out;
+  }
+  std::vector<std::pair<std::int64_t, Vec3>> pointLandmarks() const {
+    std::vector<std::pair<std::int64_t, Vec3>> out;
+    for (const auto& [id, lm] : points_.all())
+      if (lm.triangulated && window_.find(lm.host) != nullptr) out.emplace_back(id, points_.worldPosition(window_, lm));
+    return out;
+  }
 
  private:
   enum class Mode { kWaitingForFirstFrame, kCollecting, kTracking };

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 namespace linnet {
@@ -12,6 +13,14 @@ constexpr double kDegToRad = M_PI / 180.0;
 
 double wrapPi(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 
+PlaceDescription placeDescription(const LoopOptions& o) {
+  PlaceDescription pd;
+  pd.patch_px = o.orb_patch_px;
+  pd.corners = o.corners;
+  pd.fast_threshold = o.fast_threshold;
+  return pd;
+}
+
 }  // namespace
 
 LoopCloser::LoopCloser(const LoopOptions& options, const CameraModel& cam0, const Pose& T_B_C0, const Pose& T_C1_C0)
@@ -19,6 +28,44 @@ LoopCloser::LoopCloser(const LoopOptions& options, const CameraModel& cam0, cons
 
 bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left,
                              const std::vector<PointObservation>& points) {
+  return insert(t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_)));
+}
+
+void LoopCloser::queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left,
+                               const std::vector<PointObservation>& points) {
+  queued_.push_back(Queued{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_))});
+}
+
+int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& window,
+                             const std::vector<std::pair<std::int64_t, Vec3>>& landmarks) {
+  int loops = 0;
+  for (Queued& q : queued_) {
+    const auto it = std::find_if(window.begin(), window.end(), [&](const auto& w) { return w.first == q.t; });
+    if (it == window.end()) continue;
+    q.T_W_B = it->second;
+    setPlaceDepths(landmarks, q.T_W_B * T_B_C0_, &q.place);
+  }
+  // Queued keyframes older than the window's oldest frame have left it: their estimates are final.
+  const Timestamp oldest = window.empty() ? std::numeric_limits<Timestamp>::max() : window.front().first;
+  while (!queued_.empty() && queued_.front().t < oldest) {
+    Queued q = std::move(queued_.front());
+    queued_.pop_front();
+    loops += insert(q.t, q.T_W_B, std::move(q.place)) ? 1 : 0;
+  }
+  return loops;
+}
+
+int LoopCloser::flush() {
+  int loops = 0;
+  while (!queued_.empty()) {
+    Queued q = std::move(queued_.front());
+    queued_.pop_front();
+    loops += insert(q.t, q.T_W_B, std::move(q.place)) ? 1 : 0;
+  }
+  return loops;
+}
+
+bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
   Keyframe kf;
   kf.t = t;
   if (!keyframes_.empty()) {
@@ -27,8 +74,7 @@ bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left
   }
   const Pose correction = latestCorrection();
   const std::size_t k = graph_.addNode(T_W_B);
-  const Pose start = correction * T_W_B;
-  graph_.setEstimate(k, start.p, yawOf(start.R()));
+  graph_.setEstimate(k, correction * T_W_B);
   const std::size_t first = k > static_cast<std::size_t>(options_.sequential_edges)
                                 ? k - static_cast<std::size_t>(options_.sequential_edges)
                                 : 0;
@@ -37,11 +83,7 @@ bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left
     graph_.addEdge(graph_.odometryEdge(i, k, options_.odometry_sigma_m + options_.odometry_sigma_per_m * length,
                                        options_.odometry_sigma_yaw_deg * kDegToRad));
   }
-  PlaceDescription pd;
-  pd.patch_px = options_.orb_patch_px;
-  pd.corners = options_.corners;
-  pd.fast_threshold = options_.fast_threshold;
-  kf.place = describePlace(left, cam0_, points, T_C1_C0_, pd);
+  kf.place = std::move(place);
   keyframes_.push_back(std::move(kf));
   if (any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops))
     return false;
@@ -82,7 +124,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
     const Pose predicted = graph_.pose(j).inverse() * P_new;
     const double radius =
         options_.search_radius_m + options_.search_radius_per_m * (now.path_m - keyframes_[j].path_m);
-    const double dyaw = wrapPi(yawOf(graph_.pose(j).R() * T_Bj_Bk.R()) - yawOf(P_new.R()));
+    const double dyaw = wrapPi(graph_.heading(k, graph_.pose(j).R() * T_Bj_Bk.R()) - graph_.heading(k, P_new.R()));
     if ((T_Bj_Bk.p - predicted.p).norm() > radius ||
         std::abs(dyaw) > options_.max_yaw_change_deg * kDegToRad)
       continue;
@@ -97,7 +139,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
     e.inliers = m.inliers;
     const Pose after = graph_.pose(k);
     e.correction_m = (after.p - P_new.p).norm();
-    e.correction_yaw_deg = std::abs(wrapPi(yawOf(after.R()) - yawOf(P_new.R()))) / kDegToRad;
+    e.correction_yaw_deg = std::abs(wrapPi(graph_.heading(k, after.R()) - graph_.heading(k, P_new.R()))) / kDegToRad;
     loops_.push_back(e);
     last_loop_index_ = k;
     any_loop_ = true;

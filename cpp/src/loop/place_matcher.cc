@@ -1,5 +1,6 @@
 #include "linnet/loop/place_matcher.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -55,11 +56,16 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
     if (kp.class_id >= 0 && kp.class_id < n_tracked) {
       const PointObservation& p = points[static_cast<std::size_t>(kp.class_id)];
       uv = p.uv0;
-      Vec3 X;
-      if (p.has_right && triangulateChecked(views, {p.uv0, p.uv1}, tri, &X) == TriangulationStatus::kOk) {
+      Vec3 X = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+      if (!p.has_right || triangulateChecked(views, {p.uv0, p.uv1}, tri, &X) != TriangulationStatus::kOk)
+        X = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+      if (X.allFinite()) {
         f.p_C.push_back(X);
         f.descriptors_3d.push_back(desc.row(k));
       }
+      f.tracked_ids.push_back(p.id);
+      f.tracked_descriptors.push_back(desc.row(k));
+      f.tracked_stereo_p_C.push_back(X);
     } else if (!cam0.undistort(Vec2(kp.pt.x, kp.pt.y), &uv)) {
       continue;
     }
@@ -67,6 +73,25 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
     f.descriptors_2d.push_back(desc.row(k));
   }
   return f;
+}
+
+void setPlaceDepths(const std::vector<std::pair<std::int64_t, Vec3>>& p_W_by_id, const Pose& T_W_C,
+                    PlaceFeatures* f) {
+  f->p_C.clear();
+  f->descriptors_3d = cv::Mat();
+  const Pose T_C_W = T_W_C.inverse();
+  for (std::size_t i = 0; i < f->tracked_ids.size(); ++i) {
+    Vec3 X = f->tracked_stereo_p_C[i];
+    const auto it = std::lower_bound(p_W_by_id.begin(), p_W_by_id.end(), f->tracked_ids[i],
+                                     [](const std::pair<std::int64_t, Vec3>& a, std::int64_t id) { return a.first < id; });
+    if (it != p_W_by_id.end() && it->first == f->tracked_ids[i]) {
+      const Vec3 p_C = T_C_W * it->second;
+      if (p_C.z() > 0.1) X = p_C;
+    }
+    if (!X.allFinite()) continue;
+    f->p_C.push_back(X);
+    f->descriptors_3d.push_back(f->tracked_descriptors.row(static_cast<int>(i)));
+  }
 }
 
 namespace {

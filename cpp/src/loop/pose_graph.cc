@@ -6,7 +6,14 @@
 
 namespace linnet {
 
-double yawOf(const Mat3& R) { return std::atan2(R(1, 0), R(0, 0)); }
+double yawOf(const Mat3& R, int axis) { return std::atan2(R(1, axis), R(0, axis)); }
+
+int horizontalAxis(const Mat3& R) {
+  int best = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(R(2, a)) < std::abs(R(2, best))) best = a;
+  return best;
+}
 
 Mat3 rotZ(double yaw) {
   const double c = std::cos(yaw), s = std::sin(yaw);
@@ -54,7 +61,8 @@ std::size_t PoseGraph::addNode(const Pose& T_W_B) {
   Node n;
   n.odometry = T_W_B;
   const Mat3 R = T_W_B.R();
-  n.yaw = yawOf(R);
+  n.axis = horizontalAxis(R);
+  n.yaw = yawOf(R, n.axis);
   n.R_tilt = rotZ(-n.yaw) * R;
   for (int k = 0; k < 3; ++k) n.p[k] = T_W_B.p[k];
   nodes_.push_back(n);
@@ -81,7 +89,7 @@ PoseGraphEdge PoseGraph::loopEdge(std::size_t i, std::size_t j, const Pose& T_Bi
   e.j = j;
   e.t_ij = T_Bi_Bj.p;
   // j's yaw if it had i's odometry attitude composed with the measured relative rotation.
-  e.yaw_ij = wrapAngle(yawOf(nodes_[i].odometry.R() * T_Bi_Bj.R()) - nodes_[i].yaw);
+  e.yaw_ij = wrapAngle(yawOf(nodes_[i].odometry.R() * T_Bi_Bj.R(), nodes_[j].axis) - nodes_[i].yaw);
   e.sigma_t = sigma_t;
   e.sigma_yaw = sigma_yaw;
   e.loop = true;
@@ -133,9 +141,9 @@ Pose PoseGraph::pose(std::size_t k) const {
 
 Pose PoseGraph::correction(std::size_t k) const { return pose(k) * nodes_[k].odometry.inverse(); }
 
-void PoseGraph::setEstimate(std::size_t k, const Vec3& p, double yaw) {
-  for (int i = 0; i < 3; ++i) nodes_[k].p[i] = p[i];
-  nodes_[k].yaw = yaw;
+void PoseGraph::setEstimate(std::size_t k, const Pose& T_W_B) {
+  for (int i = 0; i < 3; ++i) nodes_[k].p[i] = T_W_B.p[i];
+  nodes_[k].yaw = yawOf(T_W_B.R(), nodes_[k].axis);
 }
 
 }  // namespace linnet

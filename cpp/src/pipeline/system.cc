@@ -216,7 +216,9 @@ struct System::Impl {
         if (loop && r.estimate.has_pose) {
           const double cl = threadCpuMs();
           if (r.estimate.keyframe && r.estimate.status == TrackingStatus::kTracking)
-            loop->addKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points);
+            loop->queueKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points);
+          loop->setExtrinsics(r.estimate.T_B_R * config.cam0.T_B_C);
+          if (loop->hasQueued()) loop->updateWindow(estimator.windowPoses(), estimator.pointLandmarks());
           const Pose C = loop->latestCorrection();
           r.T_W_B = C * r.estimate.T_W_B;
           r.v_W = C.q * r.estimate.v_W;
@@ -384,6 +386,7 @@ void System::finish() {
   impl_->line_worker.reset();
   rethrowWorkerError();
   if (impl_->loop) {
+    impl_->loop->flush();
     // Every frame with the final correction of its keyframe (the pose graph moved them since the callback).
     std::lock_guard<std::mutex> lock(impl_->result_mutex);
     for (FrameResult& r : impl_->results) {

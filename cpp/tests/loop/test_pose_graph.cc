@@ -38,14 +38,32 @@ Circle makeCircle(int n, double yaw_drift_per_step, const Vec3& shift_per_step) 
 }
 
 double yawError(const Pose& a, const Pose& b) {
-  return std::abs(std::remainder(yawOf(a.R()) - yawOf(b.R()), 2.0 * M_PI));
+  return std::abs(std::remainder(yawOf(a.R(), 0) - yawOf(b.R(), 0), 2.0 * M_PI));
 }
 
 TEST(PoseGraph, YawAndRotZAreInverse) {
-  for (double yaw : {-3.0, -1.0, 0.0, 0.5, 3.1}) EXPECT_NEAR(yawOf(rotZ(yaw)), yaw, 1e-12);
-  // A rotation about z adds to the yaw of a tilted attitude (z-y-x decomposition).
+  for (double yaw : {-3.0, -1.0, 0.0, 0.5, 3.1}) EXPECT_NEAR(yawOf(rotZ(yaw), 0), yaw, 1e-12);
+  // A rotation about z adds to the heading of a tilted attitude, for any non-vertical axis.
   const Mat3 R = tilted(0.2, Vec3::Zero()).R();
-  EXPECT_NEAR(yawOf(rotZ(0.5) * R), yawOf(R) + 0.5, 1e-12);
+  for (int axis : {0, 1}) EXPECT_NEAR(yawOf(rotZ(0.5) * R, axis), yawOf(R, axis) + 0.5, 1e-12);
+  EXPECT_EQ(horizontalAxis(R), 0);
+}
+
+TEST(PoseGraph, ABodyWithItsXAxisUpGetsAWellDefinedHeading) {
+  // The EuRoC MAV's IMU: x up, z forward. Its z-y-x yaw is degenerate; the graph uses the most horizontal axis.
+  Mat3 R_up;
+  R_up.col(0) = Vec3(0.02, 0.0, 1.0).normalized();
+  R_up.col(2) = Vec3(1.0, 0.0, -0.02).normalized();
+  R_up.col(1) = R_up.col(2).cross(R_up.col(0));
+  EXPECT_NE(horizontalAxis(R_up), 0);
+  PoseGraph g;
+  g.addNode(Pose(R_up, Vec3::Zero()));
+  g.addNode(Pose(Mat3(rotZ(0.3) * R_up), Vec3(1.0, 0.0, 0.0)));
+  const PoseGraphEdge e = g.odometryEdge(0, 1, 0.01, 1e-3);
+  EXPECT_NEAR(e.yaw_ij, 0.3, 1e-12);
+  const PoseGraphEdge l = g.loopEdge(0, 1, g.odometryPose(0).inverse() * g.odometryPose(1), 0.01, 1e-3);
+  EXPECT_NEAR(l.yaw_ij, 0.3, 1e-12);
+  EXPECT_LT((l.t_ij - e.t_ij).norm(), 1e-12);
 }
 
 TEST(PoseGraph, OdometryAloneKeepsTheOdometry) {

@@ -13,6 +13,7 @@
 // of binary words); it closes loops while the odometry runs.
 #pragma once
 
+#include <deque>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -39,8 +40,24 @@ class LoopCloser {
   /// cam0 (kept by reference: it must outlive the loop closer), T_B_C0 and T_C1_C0 from the calibration.
   LoopCloser(const LoopOptions& options, const CameraModel& cam0, const Pose& T_B_C0, const Pose& T_C1_C0);
 
-  /// A new keyframe at its odometry pose, with its left image and tracked corners. Returns true if it closed a loop.
+  /// A new keyframe at its (final) odometry pose, with its left image and tracked corners, inserted at once (its
+  /// corners' depths from stereo). Returns true if it closed a loop.
   bool addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left, const std::vector<PointObservation>& points);
+
+  /// The way a running odometry feeds it: a new keyframe is described now (the image is at hand) but inserted only
+  /// once it has left the odometry's window, at its final pose and with its corners at the window's final landmark
+  /// positions (multi-view, better than one stereo pair), as VINS-Mono does with its window's old keyframes.
+  void queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left, const std::vector<PointObservation>& points);
+  /// The odometry's window after a frame (oldest first) and its triangulated landmarks (sorted by id): updates the
+  /// queued keyframes still in it, and inserts those that have left it. Returns the loops closed.
+  int updateWindow(const std::vector<std::pair<Timestamp, Pose>>& window,
+                   const std::vector<std::pair<std::int64_t, Vec3>>& landmarks);
+  /// The rig's extrinsics as the odometry now uses them (its online refinement, EstimatorOutput::T_B_R * T_B_C0);
+  /// used for what follows: landmark depths and loop measurements.
+  void setExtrinsics(const Pose& T_B_C0) { T_B_C0_ = T_B_C0; }
+  /// Inserts every queued keyframe (end of the stream).
+  int flush();
+  bool hasQueued() const { return !queued_.empty(); }
 
   /// T_Wcorrected_Wodometry in force at time t: the correction of the last keyframe at or before t (identity before
   /// the first keyframe).
@@ -57,12 +74,19 @@ class LoopCloser {
     PlaceFeatures place;
     double path_m = 0.0;  // odometry path length up to this keyframe
   };
+  struct Queued {
+    Timestamp t = 0;
+    Pose T_W_B;
+    PlaceFeatures place;
+  };
+  bool insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place);
   bool tryLoop(std::size_t new_index);
 
   LoopOptions options_;
   const CameraModel& cam0_;
   Pose T_B_C0_, T_C1_C0_;
   std::vector<Keyframe> keyframes_;
+  std::deque<Queued> queued_;
   PoseGraph graph_;
   std::vector<LoopEvent> loops_;
   std::size_t last_loop_index_ = 0;

@@ -18,8 +18,12 @@ namespace linnet {
 class CameraModel;
 
 struct PlaceFeatures {
-  std::vector<Vec3> p_C;    // tracked corners with stereo depth: positions in cam0
+  std::vector<Vec3> p_C;    // tracked corners with a position: in cam0
   cv::Mat descriptors_3d;   // their ORB descriptors, one 32-byte row each (CV_8U)
+  // Every described tracked corner: its track id, descriptor and stereo-triangulated position in cam0 (NaN: none).
+  std::vector<std::int64_t> tracked_ids;
+  cv::Mat tracked_descriptors;
+  std::vector<Vec3> tracked_stereo_p_C;
   std::vector<Vec2> uv;     // every described corner (tracked and detected): normalised, undistorted cam0 coordinates
   cv::Mat descriptors_2d;   // their ORB descriptors
 };
@@ -50,6 +54,11 @@ struct PlaceMatch {
   int inliers = 0;           // PnP RANSAC inliers
   Pose T_Cold_Cnew;          // the new keyframe's cam0 in the old one's cam0
 };
+
+/// Rebuilds p_C / descriptors_3d of the tracked corners: the odometry's landmark position where `p_W_by_id` (sorted
+/// by id) has the track (seen from T_W_C, the camera pose of the same estimate), else the stereo position.
+void setPlaceDepths(const std::vector<std::pair<std::int64_t, Vec3>>& p_W_by_id, const Pose& T_W_C,
+                    PlaceFeatures* f);
 
 /// Matches the new keyframe's 3D corners to the old keyframe's 2D corners and solves the old camera's pose from
 /// those pairs (EPnP in RANSAC, then iterative refinement on the inliers); if that fails, the other way round.

@@ -12,8 +12,12 @@
 
 namespace linnet {
 
-/// Yaw of a rotation (z-y-x Euler angles, z up), radians.
-double yawOf(const Mat3& R);
+/// Heading of body axis `axis` (0: x, 1: y, 2: z) of the attitude R about W's z axis, radians:
+/// yawOf(rotZ(a) * R, axis) = yawOf(R, axis) + a. Defined while that axis is not vertical.
+double yawOf(const Mat3& R, int axis);
+/// The body axis of R closest to horizontal (a well-defined heading whatever the body's mounting: on the EuRoC MAV
+/// the IMU's x axis points up, where a z-y-x yaw is degenerate).
+int horizontalAxis(const Mat3& R);
 /// Rotation about z by `yaw` radians.
 Mat3 rotZ(double yaw);
 
@@ -52,13 +56,17 @@ class PoseGraph {
   const Pose& odometryPose(std::size_t k) const { return nodes_[k].odometry; }
   /// T_Wcorrected_Wodometry of node k: maps its odometry pose onto its estimate (a yaw rotation and a shift).
   Pose correction(std::size_t k) const;
-  /// Sets node k's estimate (e.g. a new node initialised with the latest correction).
-  void setEstimate(std::size_t k, const Vec3& p, double yaw);
+  /// Sets node k's estimate (e.g. a new node initialised with the latest correction) from a pose; only its position
+  /// and heading are taken.
+  void setEstimate(std::size_t k, const Pose& T_W_B);
+  /// Heading of an attitude with node k's reference axis, radians.
+  double heading(std::size_t k, const Mat3& R) const { return yawOf(R, nodes_[k].axis); }
 
  private:
   struct Node {
     Pose odometry;
-    Mat3 R_tilt;  // roll and pitch: R = rotZ(yaw) * R_tilt
+    int axis = 2;  // body axis whose heading is the node's yaw
+    Mat3 R_tilt;   // the attitude without its heading: R = rotZ(yaw) * R_tilt
     double p[3];
     double yaw;
   };
