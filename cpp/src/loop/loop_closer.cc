@@ -33,7 +33,7 @@ bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left
 
 void LoopCloser::queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left,
                                const std::vector<PointObservation>& points) {
-  queued_.push_back(Queued{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_))});
+  queued_.push_back(Queued{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_)), {}});
 }
 
 int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& window,
@@ -43,13 +43,19 @@ int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& wind
     const auto it = std::find_if(window.begin(), window.end(), [&](const auto& w) { return w.first == q.t; });
     if (it == window.end()) continue;
     q.T_W_B = it->second;
-    setPlaceDepths(landmarks, q.T_W_B * T_B_C0_, &q.place);
+    q.p_W.assign(q.place.tracked_ids.size(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
+    for (std::size_t i = 0; i < q.p_W.size(); ++i) {
+      const auto lm = std::lower_bound(landmarks.begin(), landmarks.end(), q.place.tracked_ids[i],
+                                       [](const std::pair<std::int64_t, Vec3>& a, std::int64_t id) { return a.first < id; });
+      if (lm != landmarks.end() && lm->first == q.place.tracked_ids[i]) q.p_W[i] = lm->second;
+    }
   }
   // Queued keyframes older than the window's oldest frame have left it: their estimates are final.
   const Timestamp oldest = window.empty() ? std::numeric_limits<Timestamp>::max() : window.front().first;
   while (!queued_.empty() && queued_.front().t < oldest) {
     Queued q = std::move(queued_.front());
     queued_.pop_front();
+    setPlaceDepths(q.p_W, q.T_W_B * T_B_C0_, &q.place);
     loops += insert(q.t, q.T_W_B, std::move(q.place)) ? 1 : 0;
   }
   return loops;
@@ -60,6 +66,7 @@ int LoopCloser::flush() {
   while (!queued_.empty()) {
     Queued q = std::move(queued_.front());
     queued_.pop_front();
+    setPlaceDepths(q.p_W, q.T_W_B * T_B_C0_, &q.place);
     loops += insert(q.t, q.T_W_B, std::move(q.place)) ? 1 : 0;
   }
   return loops;

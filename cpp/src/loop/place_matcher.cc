@@ -75,17 +75,14 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
   return f;
 }
 
-void setPlaceDepths(const std::vector<std::pair<std::int64_t, Vec3>>& p_W_by_id, const Pose& T_W_C,
-                    PlaceFeatures* f) {
+void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, PlaceFeatures* f) {
   f->p_C.clear();
   f->descriptors_3d = cv::Mat();
   const Pose T_C_W = T_W_C.inverse();
   for (std::size_t i = 0; i < f->tracked_ids.size(); ++i) {
     Vec3 X = f->tracked_stereo_p_C[i];
-    const auto it = std::lower_bound(p_W_by_id.begin(), p_W_by_id.end(), f->tracked_ids[i],
-                                     [](const std::pair<std::int64_t, Vec3>& a, std::int64_t id) { return a.first < id; });
-    if (it != p_W_by_id.end() && it->first == f->tracked_ids[i]) {
-      const Vec3 p_C = T_C_W * it->second;
+    if (i < p_W_tracked.size() && p_W_tracked[i].allFinite()) {
+      const Vec3 p_C = T_C_W * p_W_tracked[i];
       if (p_C.z() > 0.1) X = p_C;
     }
     if (!X.allFinite()) continue;

@@ -66,6 +66,10 @@ class LoopCloser {
   Pose latestCorrection() const;
 
   const std::vector<LoopEvent>& loops() const { return loops_; }
+  /// Keyframe k (in insertion order): time, final odometry pose and loop-corrected pose.
+  Timestamp keyframeTime(std::size_t k) const { return keyframes_[k].t; }
+  const Pose& keyframeOdometry(std::size_t k) const { return graph_.odometryPose(k); }
+  Pose keyframeCorrected(std::size_t k) const { return graph_.pose(k); }
   std::size_t keyframes() const { return keyframes_.size(); }
 
  private:
@@ -78,6 +82,7 @@ class LoopCloser {
     Timestamp t = 0;
     Pose T_W_B;
     PlaceFeatures place;
+    std::vector<Vec3> p_W;  // the window's landmark position of each tracked corner at T_W_B's estimate (NaN: none)
   };
   bool insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place);
   bool tryLoop(std::size_t new_index);

@@ -4,7 +4,9 @@
 namespace linnet {
 
 struct LoopOptions {
-  bool enabled = false;                // detect loops among the keyframes and correct the trajectory and map
+  bool enabled = true;                 // detect loops among the keyframes and correct the trajectory and map. 9 hard
+                                       // and low-texture replays: mean APE 0.0334 -> 0.0237 m, MH_04 hall hard
+                                       // 0.0544 -> 0.0285 m (README "Loop closure")
   // Candidate search. The odometry drifts slowly, so a place seen before is looked for around the keyframe's
   // position predicted with the current correction, not in the whole database.
   double min_time_gap_s = 20.0;        // a candidate keyframe is at least this much older, s
@@ -27,7 +29,9 @@ struct LoopOptions {
   double odometry_sigma_m = 0.005;     // odometry edge sigma, m ...
   double odometry_sigma_per_m = 0.01;  // ... plus this fraction of the edge length
   double odometry_sigma_yaw_deg = 0.05;  // odometry edge yaw sigma, deg
-  double loop_sigma_m = 0.01;          // loop edge sigma, m
+  double loop_sigma_m = 0.01;          // loop edge sigma, m (measured against the truth on MH_01 hall hard and
+                                       // a figure-eight replay: 1.5 cm RMS, 0.2 deg; 0.03 m / 0.5 deg gave a mean
+                                       // of 0.0245 m on the 9 replays)
   double loop_sigma_yaw_deg = 0.2;     // loop edge yaw sigma, deg
   double loop_huber = 0.0;             // Huber threshold of a loop edge, sigmas (0: none; loops are gated by
                                        // verification and by agreement with the corrected odometry instead)

@@ -55,10 +55,10 @@ struct PlaceMatch {
   Pose T_Cold_Cnew;          // the new keyframe's cam0 in the old one's cam0
 };
 
-/// Rebuilds p_C / descriptors_3d of the tracked corners: the odometry's landmark position where `p_W_by_id` (sorted
-/// by id) has the track (seen from T_W_C, the camera pose of the same estimate), else the stereo position.
-void setPlaceDepths(const std::vector<std::pair<std::int64_t, Vec3>>& p_W_by_id, const Pose& T_W_C,
-                    PlaceFeatures* f);
+/// Rebuilds p_C / descriptors_3d of the tracked corners: p_W_tracked[i] (the odometry's landmark position of
+/// tracked_ids[i], NaN if none; seen from T_W_C, the camera pose of the same estimate) where finite and in front,
+/// else the stereo position.
+void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, PlaceFeatures* f);
 
 /// Matches the new keyframe's 3D corners to the old keyframe's 2D corners and solves the old camera's pose from
 /// those pairs (EPnP in RANSAC, then iterative refinement on the inliers); if that fails, the other way round.
