@@ -88,6 +88,13 @@ int main(int argc, char** argv) {
                   "[%.3f %.3f %.3f], translation %.2f mm [%.2f %.2f %.2f]\n",
                   w.norm(), w.x(), w.y(), w.z(), 1e3 * c.p.norm(), 1e3 * c.p.x(), 1e3 * c.p.y(), 1e3 * c.p.z());
     }
+    if (r.stereo_correction_estimated) {
+      const linnet::Pose& c = r.stereo_correction;
+      const linnet::Vec3 w = linnet::logSO3(c.q) * (180.0 / M_PI);
+      std::printf("cam1 refined online relative to cam0 (S, cam1 at T_B_R * T_B_C1 * S): rotation %.4f deg "
+                  "[%.4f %.4f %.4f], translation %.3f mm\n",
+                  w.norm(), w.x(), w.y(), w.z(), 1e3 * c.p.norm());
+    }
     if (r.time_offset_estimated)
       std::printf("camera-to-IMU time offset estimated online: %.3f ms (camera stamp - capture time)\n",
                   1e3 * r.time_offset_s);

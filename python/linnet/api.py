@@ -122,15 +122,16 @@ def run_dataset(dataset: PathLike, config: Optional[_linnet.Config] = None, *, m
     return result
 
 
-def extrinsics_correction(T_B_R) -> dict:
-    """The online rig correction as summary.json gives it: the 4x4 T_B_R (the cameras are at T_B_R @ T_B_Ci, with
-    T_B_Ci the calibration's) and its rotation angle and translation length."""
+def extrinsics_correction(T, key: str = "T_B_R") -> dict:
+    """An online extrinsics correction as summary.json gives it: the 4x4 matrix under `key` (the rig's T_B_R: the
+    cameras are at T_B_R @ T_B_Ci, with T_B_Ci the calibration's; cam1's S: cam1 is at T_B_R @ T_B_C1 @ S) and its
+    rotation angle and translation length."""
     import numpy as np
 
     from linnet.sim.rotations import log_so3
 
-    T = np.asarray(T_B_R, dtype=float)
-    return {"T_B_R": T.tolist(), "rotation_deg": float(np.degrees(np.linalg.norm(log_so3(T[:3, :3])))),
+    T = np.asarray(T, dtype=float)
+    return {key: T.tolist(), "rotation_deg": float(np.degrees(np.linalg.norm(log_so3(T[:3, :3])))),
             "translation_m": float(np.linalg.norm(T[:3, 3]))}
 
 
@@ -162,6 +163,8 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
         summary["time_offset_ms"] = 1e3 * run.time_offset_s
     if run.extrinsics_estimated:
         summary["extrinsics_correction"] = extrinsics_correction(run.extrinsics_correction)
+    if run.stereo_correction_estimated:
+        summary["stereo_correction"] = extrinsics_correction(run.stereo_correction, "S")
     if run.loop_enabled:
         loops = run.loops
         summary["loop_closure"] = {

@@ -38,6 +38,10 @@ def test_time_offset_is_recovered_with_the_default_config(offset_replay, tmp_pat
     assert T.shape == (4, 4)
     np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9)
     assert c["rotation_deg"] < 0.3 and c["translation_m"] < 0.01, c
+    # So is cam1 relative to cam0, exact here too: hundredths of a degree at most.
+    c1 = s["stereo_correction"]
+    assert np.array(c1["S"]).shape == (4, 4)
+    assert c1["rotation_deg"] < 0.05 and c1["translation_m"] < 0.001, c1
 
 
 def test_extrinsics_correction_is_absent_when_off(offset_replay, tmp_path):
@@ -50,3 +54,4 @@ def test_extrinsics_correction_is_absent_when_off(offset_replay, tmp_path):
     s = json.loads((tmp_path / "summary.json").read_text())
     assert s["status"] == "ok", s["problems"]
     assert "extrinsics_correction" not in s
+    assert "stereo_correction" not in s

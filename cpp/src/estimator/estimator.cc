@@ -143,6 +143,7 @@ EstimatorOutput EstimatorCore::output(const WindowFrame& f) const {
   out.num_lines = lines_.countUsed();
   out.reinitialisations = reinitialisations_;
   out.T_B_R = rigCorrection();
+  out.S_C1 = stereoCorrection();
   out.time_offset_s = timeOffset();
   return out;
 }

@@ -1,10 +1,12 @@
 // Online calibration in the window (factors/pose_wrappers.h): one correction T_B_R of the stereo rig's extrinsics,
-// common to both cameras, and the camera-to-IMU time offset t_d. Each is a block of the window like a frame block:
+// common to both cameras, cam1's correction S relative to cam0, and the camera-to-IMU time offset t_d. Each is a
+// block of the window like a frame block:
 // it enters each new window with a prior at its current value (sigmas in options_.extrinsics / time_offset) and is
 // never marginalised, so what the window learns about it stays in the marginalisation priors.
 #include <algorithm>
 
 #include "estimator_core.h"
+#include "linnet/estimator/factors/point_factors.h"
 #include "linnet/estimator/factors/pose_wrappers.h"
 
 namespace linnet {
@@ -25,7 +27,21 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
   const bool rig = options_.extrinsics.estimate && !rig_held_;
   const bool time = options_.time_offset.estimate && !time_offset_held_;
   if (!rig && !time) return;
+  const bool stereo = rig && stereoEstimated();
+  const Pose T_B_C1 = stereo ? rig_applied_ * *T_B_C1_ * stereo_applied_ : Pose::identity();  // as in the landmarks
   for (ResidualSpec& r : *residuals) {
+    // cam1's correction applies to cam1's pose on the body, so it is the innermost wrapper.
+    if (stereo && r.cam1 == ResidualSpec::kCam1Pair) {
+      r.cost = std::make_shared<PointStereoCorrectedFactor>(static_cast<const PointStereoFactor&>(*r.cost),
+                                                            stereo_applied_);
+      r.blocks.push_back(stereo_.data());
+      r.keys.push_back(kStereoBlockKey);
+    } else if (stereo && r.cam1 >= 0) {
+      const WindowFrame* f = window_.find(r.keys[static_cast<std::size_t>(r.cam1)] / 4);
+      r.cost = RigCorrectedFactor::stereoCorrected(r.cost, r.cam1, f->capture_shift * T_B_C1, stereo_applied_);
+      r.blocks.push_back(stereo_.data());
+      r.keys.push_back(kStereoBlockKey);
+    }
     std::vector<int> poses;  // visual residuals: their frame keys are pose blocks
     for (std::size_t b = 0; b < r.keys.size(); ++b)
       if (r.keys[b] >= 0 && r.keys[b] % 4 == static_cast<int>(BlockKind::kPose)) poses.push_back(static_cast<int>(b));
@@ -83,8 +99,9 @@ void EstimatorCore::setCaptureShifts() {
 void EstimatorCore::applyRig() {
   if (!options_.extrinsics.estimate || rig_held_) return;
   rig_applied_ = rigCorrection();
+  if (stereoEstimated()) stereo_applied_ = stereoCorrection();
   std::optional<Pose> c1;
-  if (T_B_C1_.has_value()) c1 = rig_applied_ * *T_B_C1_;
+  if (T_B_C1_.has_value()) c1 = rig_applied_ * *T_B_C1_ * stereo_applied_;
   points_.setExtrinsics(rig_applied_ * T_B_C0_, c1);
   lines_.setExtrinsics(rig_applied_ * T_B_C0_, c1);
 }
@@ -115,6 +132,13 @@ void EstimatorCore::addCalibrationPriors() {
     J.bottomRightCorner<3, 3>() = Mat3::Identity() / (o.prior_rotation_deg * M_PI / 180.0);
     priors_.push_back(blockPrior(kRigBlockKey, rig_.data(), kPoseAmbientSize, &pose_manifold_, J));
   }
+  if (stereoEstimated()) {
+    const ExtrinsicsOptions& o = options_.extrinsics;
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(6, 6);
+    J.topLeftCorner<3, 3>() = Mat3::Identity() / o.prior_stereo_translation_m;
+    J.bottomRightCorner<3, 3>() = Mat3::Identity() / (o.prior_stereo_rotation_deg * M_PI / 180.0);
+    priors_.push_back(blockPrior(kStereoBlockKey, stereo_.data(), kPoseAmbientSize, &pose_manifold_, J));
+  }
   if (options_.time_offset.estimate) {
     const Eigen::MatrixXd J = Eigen::MatrixXd::Constant(1, 1, 1.0 / (1e-3 * options_.time_offset.prior_ms));
     priors_.push_back(blockPrior(kTimeOffsetBlockKey, time_offset_.data(), 1, nullptr, J));
@@ -123,12 +147,13 @@ void EstimatorCore::addCalibrationPriors() {
 
 double* EstimatorCore::blockOf(BlockKey key) {
   if (key == kRigBlockKey) return rig_.data();
+  if (key == kStereoBlockKey) return stereo_.data();
   if (key == kTimeOffsetBlockKey) return time_offset_.data();
   return window_.block(key);
 }
 
 int EstimatorCore::ambientSizeOf(BlockKey key) const {
-  if (key == kRigBlockKey) return kPoseAmbientSize;
+  if (key == kRigBlockKey || key == kStereoBlockKey) return kPoseAmbientSize;
   if (key == kTimeOffsetBlockKey) return 1;
   return key % 4 == static_cast<int>(BlockKind::kPose) ? kPoseAmbientSize : kSpeedBiasSize;
 }

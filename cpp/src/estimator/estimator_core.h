@@ -115,6 +115,12 @@ class EstimatorCore {
   Pose rigCorrection() const;
   /// cam0's extrinsics as the estimator currently believes them (the calibration's, corrected).
   Pose T_B_C0() const { return rigCorrection() * T_B_C0_; }
+  /// The current stereo correction S of cam1 (identity unless estimated).
+  Pose stereoCorrection() const { return rig_held_ ? stereo_applied_ : poseFromBlock(stereo_.data()); }
+  /// Whether cam1's correction S is a block of the window now.
+  bool stereoEstimated() const {
+    return options_.extrinsics.estimate && options_.extrinsics.estimate_stereo && T_B_C1_.has_value();
+  }
   /// Wraps the visual residuals that involve body poses in RigCorrectedFactor and TimeShiftedFactor (each when
   /// estimated).
   void correctCalibration(std::vector<ResidualSpec>* residuals);
@@ -143,6 +149,8 @@ class EstimatorCore {
   std::optional<Pose> T_B_C1_;
   std::array<double, 7> rig_{0, 0, 0, 0, 0, 0, 1};  // rig correction T_B_R block (PoseManifold), see pose_wrappers.h
   Pose rig_applied_;               // the correction the landmarks' extrinsics contain
+  std::array<double, 7> stereo_{0, 0, 0, 0, 0, 0, 1};  // cam1's correction S (PoseManifold), held with the rig
+  Pose stereo_applied_;            // the S the landmarks' cam1 extrinsics contain
   std::array<double, 1> time_offset_{0.0};  // camera-to-IMU time offset t_d, s
   Timestamp calibration_last_t_ = -1;       // newest frame of the last solve with online calibration
   double calibration_moving_s_ = 0.0;       // tracked time in motion (frames not at rest) since then, s

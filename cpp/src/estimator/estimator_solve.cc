@@ -80,6 +80,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
     problem.AddParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize);
   }
   if (options_.extrinsics.estimate) problem.AddParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_);
+  if (stereoEstimated()) problem.AddParameterBlock(stereo_.data(), kPoseAmbientSize, &pose_manifold_);
   if (options_.time_offset.estimate) problem.AddParameterBlock(time_offset_.data(), 1);
   // Keep the cost functions alive for the solve (the problem does not own them).
   std::vector<std::shared_ptr<ceres::CostFunction>> keep;
@@ -141,6 +142,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     solver.addParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize, nullptr, false);
   }
   if (options_.extrinsics.estimate) solver.addParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_, false);
+  if (stereoEstimated()) solver.addParameterBlock(stereo_.data(), kPoseAmbientSize, &pose_manifold_, false);
   if (options_.time_offset.estimate) solver.addParameterBlock(time_offset_.data(), 1, nullptr, false);
   std::vector<std::shared_ptr<PriorFactor>> prior_factors;
   for (const auto& prior : priors_) {

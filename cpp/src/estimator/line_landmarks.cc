@@ -135,8 +135,9 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
         const auto w = frame_weight.find(fid);
         if (w != frame_weight.end()) s *= std::sqrt(w->second);
       }
-      auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C) {
+      auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C, bool cam1) {
         ResidualSpec r;
+        if (cam1) r.cam1 = 0;
         r.cost = std::make_shared<LineReprojectionFactor>(a, b, f->capture_shift * T_B_C, s);
         r.robust = true;
         r.line = true;
@@ -144,8 +145,8 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
         r.keys = {frameBlockKey(fid, BlockKind::kPose), key};
         out.push_back(std::move(r));
       };
-      add(o.s0, o.e0, T_B_C0_);
-      if (o.has_right && options_.right_residuals) add(o.s1, o.e1, *T_B_C1_);
+      add(o.s0, o.e0, T_B_C0_, false);
+      if (o.has_right && options_.right_residuals) add(o.s1, o.e1, *T_B_C1_, true);
     }
     if (host_only < 0) lm.used = lm.solved = true;
   }

@@ -112,6 +112,44 @@ bool PointStereoFactor::Evaluate(double const* const* parameters, double* residu
   return true;
 }
 
+PointStereoCorrectedFactor::PointStereoCorrectedFactor(const Vec2& uv_left, const Vec2& uv_right, const Pose& T_B_C0,
+                                                       const Pose& T_B_C1, const Pose& S0, double sqrt_info)
+    : uv_left_(uv_left), uv_right_(uv_right), S0_T_C1_C0_(S0 * (T_B_C1.inverse() * T_B_C0)), sqrt_info_(sqrt_info) {}
+
+PointStereoCorrectedFactor::PointStereoCorrectedFactor(const PointStereoFactor& f, const Pose& S0)
+    : uv_left_(f.uvLeft()), uv_right_(f.uvRight()), S0_T_C1_C0_(S0 * f.T_C1_C0()), sqrt_info_(f.sqrtInfo()) {}
+
+bool PointStereoCorrectedFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
+                                                      double** jacobians) const {
+  const double inv_depth = parameters[0][0];
+  const Pose S = poseFromBlock(parameters[1]);
+  const Mat3 R_S_t = S.R().transpose();
+  const Vec3 f(uv_left_.x(), uv_left_.y(), 1.0);
+  const Vec3 p = R_S_t * (S0_T_C1_C0_ * (f / inv_depth) - S.p);
+  const Vec2 r = sqrt_info_ * (Vec2(p.x() / p.z(), p.y() / p.z()) - uv_right_);
+  if (!r.allFinite()) return false;
+  residuals[0] = r.x();
+  residuals[1] = r.y();
+  if (jacobians == nullptr) return true;
+  const Eigen::Matrix<double, 2, 3> D = projectionJacobian(p, sqrt_info_);
+  if (jacobians[0] != nullptr) {
+    const Vec2 J = D * R_S_t * S0_T_C1_C0_.R() * (-f / (inv_depth * inv_depth));
+    jacobians[0][0] = J.x();
+    jacobians[0][1] = J.y();
+  }
+  if (jacobians[1] != nullptr) {
+    Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>> J(jacobians[1]);
+    J.leftCols<3>() = -D * R_S_t;
+    J.rightCols<3>() = D * skew(p);
+  }
+  return true;
+}
+
+bool PointStereoCorrectedFactor::Evaluate(double const* const* parameters, double* residuals,
+                                          double** jacobians) const {
+  return evaluateThroughTangent(*this, parameter_block_sizes(), num_residuals(), parameters, residuals, jacobians);
+}
+
 double pointReprojectionErrorPx(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost,
                                 const Pose& T_B_Ctarget, const Pose& T_W_Bhost, const Pose& T_W_Btarget,
                                 double inv_depth, double focal_px) {

@@ -101,6 +101,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
         r.robust = true;
         r.blocks = {&lm.inv_depth};
         r.keys = {lm_key};
+        r.cam1 = ResidualSpec::kCam1Pair;
         out.push_back(std::move(r));
         continue;
       }
@@ -120,6 +121,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
         r2.robust = true;
         r2.blocks = r1.blocks;
         r2.keys = r1.keys;
+        r2.cam1 = 1;
         out.push_back(std::move(r1));
         out.push_back(std::move(r2));
       } else {

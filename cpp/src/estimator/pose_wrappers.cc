@@ -89,26 +89,41 @@ bool PoseWrappedFactor::Evaluate(double const* const* parameters, double* residu
 
 RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
                                        const Pose& T_B_R0)
+    : RigCorrectedFactor(std::move(inner), std::move(pose_blocks), Pose::identity(), T_B_R0.inverse()) {}
+
+RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
+                                       const Pose& left, const Pose& right)
     : PoseWrappedFactor(std::move(inner), std::move(pose_blocks), kPoseAmbientSize, true),
-      D_(T_B_R0.inverse()),
-      R_D_t_(D_.R().transpose()),
-      skew_t_D_(skew(D_.p)) {}
+      L_(left),
+      Rr_(right),
+      R_L_(left.R()),
+      R_Rr_t_(right.R().transpose()),
+      skew_t_Rr_(skew(right.p)) {}
+
+std::shared_ptr<RigCorrectedFactor> RigCorrectedFactor::stereoCorrected(std::shared_ptr<ceres::CostFunction> inner,
+                                                                        int pose_block, const Pose& T_B_Ct,
+                                                                        const Pose& S0) {
+  // T'_Bj * T_B_Ct = T_W_Bj * T_B_Ct * S0^-1 * S: the camera at its uncorrected pose, then S.
+  return std::make_shared<RigCorrectedFactor>(std::move(inner), std::vector<int>{pose_block}, T_B_Ct * S0.inverse(),
+                                              T_B_Ct.inverse());
+}
 
 Pose RigCorrectedFactor::transform(std::size_t /*k*/, const Pose& body, const double* extra, Mat6* d_body,
                                    ExtraMap* d_extra) const {
-  const Pose T_B_R = poseFromBlock(extra);
-  const Pose M = T_B_R * D_;
+  const Pose X = poseFromBlock(extra);
+  const Pose N = L_ * X * Rr_;
   if (d_body != nullptr) {
     const Mat3 R_B = body.R();
+    const Mat3 R_BL = R_B * R_L_;
     d_body->setIdentity();
-    d_body->topRightCorner<3, 3>() = -R_B * skew(M.p);
-    d_body->bottomRightCorner<3, 3>() = M.R().transpose();
+    d_body->topRightCorner<3, 3>() = -R_B * skew(N.p);
+    d_body->bottomRightCorner<3, 3>() = N.R().transpose();
     d_extra->setZero(6, 6);
-    d_extra->topLeftCorner(3, 3) = R_B;
-    d_extra->topRightCorner(3, 3) = -(R_B * T_B_R.R()) * skew_t_D_;
-    d_extra->bottomRightCorner(3, 3) = R_D_t_;
+    d_extra->topLeftCorner(3, 3) = R_BL;
+    d_extra->topRightCorner(3, 3) = -(R_BL * X.R()) * skew_t_Rr_;
+    d_extra->bottomRightCorner(3, 3) = R_Rr_t_;
   }
-  return body * M;
+  return body * N;
 }
 
 TimeShiftedFactor::TimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,

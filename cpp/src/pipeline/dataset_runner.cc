@@ -126,6 +126,8 @@ StreamRun::StreamRun(const Config& config, double realtime_speed)
   system_ = std::make_unique<System>(config_);
   summary_.stereo = config_.stereo;
   summary_.extrinsics_estimated = config_.estimator.extrinsics.estimate;
+  summary_.stereo_correction_estimated =
+      config_.estimator.extrinsics.estimate && config_.estimator.extrinsics.estimate_stereo && config_.stereo;
   summary_.time_offset_estimated = config_.estimator.time_offset.estimate;
 }
 
@@ -194,6 +196,7 @@ RunSummary StreamRun::finish() {
     summary.reinitialisations = std::max(summary.reinitialisations, r.estimate.reinitialisations);
     if (r.estimate.has_pose) {
       summary.extrinsics_correction = r.estimate.T_B_R;
+      summary.stereo_correction = r.estimate.S_C1;
       summary.time_offset_s = r.estimate.time_offset_s;
     }
   }

@@ -43,6 +43,10 @@ void bindRun(py::module_& m) {
       .def_property_readonly(
           "extrinsics_correction", [](const RunSummary& r) { return Eigen::Matrix4d(r.extrinsics_correction.matrix()); },
           "online correction T_B_R of the rig's extrinsics (4x4; cameras at T_B_R @ T_B_Ci)")
+      .def_readonly("stereo_correction_estimated", &RunSummary::stereo_correction_estimated)
+      .def_property_readonly(
+          "stereo_correction", [](const RunSummary& r) { return Eigen::Matrix4d(r.stereo_correction.matrix()); },
+          "online correction S of cam1 relative to cam0 (4x4; cam1 at T_B_R @ T_B_C1 @ S)")
       .def_readonly("time_offset_estimated", &RunSummary::time_offset_estimated)
       .def_readonly("time_offset_s", &RunSummary::time_offset_s)
       .def_readonly("loop_enabled", &RunSummary::loop_enabled)

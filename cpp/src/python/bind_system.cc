@@ -156,7 +156,11 @@ void bindSystem(py::module_& m) {
       .def_property_readonly(
           "extrinsics_correction", [](const FrameResult& r) { return Eigen::Matrix4d(r.estimate.T_B_R.matrix()); },
           "online correction T_B_R of the rig's extrinsics (4x4; cameras at T_B_R @ T_B_Ci; identity unless "
-          "estimator.extrinsics.estimate)");
+          "estimator.extrinsics.estimate)")
+      .def_property_readonly(
+          "stereo_correction", [](const FrameResult& r) { return Eigen::Matrix4d(r.estimate.S_C1.matrix()); },
+          "online correction S of cam1 relative to cam0 (4x4; cam1 at T_B_R @ T_B_C1 @ S; identity unless "
+          "estimator.extrinsics.estimate_stereo)");
 
   py::class_<PySystem>(m, "System",
                        "Stereo/mono + IMU SLAM system: add_imu / add_stereo / add_mono in time order, then finish()")

@@ -29,7 +29,7 @@ template <class Edit>
 RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options, bool stereo, Edit edit) {
   const Pose& E = sim.options().calibration_error;
   Estimator est(options, syntheticNoise(), E * eurocTBC0(),
-                stereo ? std::optional<Pose>(E * eurocTBC1()) : std::nullopt);
+                stereo ? std::optional<Pose>(E * eurocTBC1() * sim.options().stereo_error) : std::nullopt);
   RunResult r;
   std::size_t next_imu = 0;
   const auto& imu = sim.imu();

@@ -48,6 +48,7 @@ struct SyntheticOptions {
   std::uint64_t seed = 7;
   double camera_time_offset_s = 0.0;  // frame stamps are the capture time plus this (camera-to-IMU offset), s
   Pose calibration_error;             // the extrinsics handed to the estimator are calibration_error * T_B_Ci
+  Pose stereo_error;                  // ... and cam1's is calibration_error * T_B_C1 * stereo_error
 };
 
 /// Ground truth of one instant.

@@ -1,7 +1,8 @@
-// Online rig extrinsics and time offset (RigCorrectedFactor, TimeShiftedFactor): the wrapped point and line
-// residuals equal the inner factors at the corrected / shifted poses, and their Jacobians (body poses, landmark,
-// correction, offset; alone and nested as the estimator nests them) match numeric differences through the
-// manifolds (the shared checker, which fails on a wrong Jacobian).
+// Online rig extrinsics, cam1's stereo correction and time offset (RigCorrectedFactor, its stereoCorrected form,
+// PointStereoCorrectedFactor, TimeShiftedFactor): the wrapped point and line residuals equal the inner factors at the
+// corrected / shifted poses, and their Jacobians (body poses, landmark, corrections, offset; alone and nested as the
+// estimator nests them) match numeric differences through the manifolds (the shared checker, which fails on a wrong
+// Jacobian).
 #include "linnet/estimator/factors/pose_wrappers.h"
 
 #include <array>
@@ -225,6 +226,154 @@ TEST(TimeShiftedFactor, JacobiansAloneAndAroundTheRigCorrection) {
     const TimeShiftedFactor shifted_line(line, {0}, {v[0]}, {w[0]});
     ASSERT_TRUE(testing::jacobiansMatch(shifted_line, {bi.data(), L.data(), &td}, {&pm, &lm, nullptr}, kTol))
         << "trial " << trial;
+  }
+}
+
+// --- cam1's stereo correction S (cam1 at T_B_C1 * S)
+
+TEST(StereoCorrection, Cam1PointResidualIsTheInnerFactorWithCam1Corrected) {
+  std::mt19937 rng(17);
+  const PoseManifold pm;
+  for (int trial = 0; trial < 40; ++trial) {
+    const PointCase c = pointCase(rng, cam1());
+    const Pose S0 = randomPose(rng, 0.005, 0.001), S = randomPose(rng, 0.005, 0.001);
+    const double s = pointSqrtInformation(kFocal);
+    // Built with the rig correction R0 and cam1's S0 in its extrinsics, evaluated at S.
+    const Pose T_B_Ct = c.T_B_R0 * cam1() * S0;
+    auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(), T_B_Ct, s);
+    const PointReprojectionFactor direct(c.uv_host, c.uv_target, c.T_B_R0 * cam0(), c.T_B_R0 * cam1() * S, s);
+    const auto wrapped = RigCorrectedFactor::stereoCorrected(inner, 1, T_B_Ct, S0);
+    auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), bs = block(S), br = block(c.T_B_R);
+    double rho = c.rho;
+    const double* pw[4] = {bi.data(), bj.data(), &rho, bs.data()};
+    const double* pd[3] = {bi.data(), bj.data(), &rho};
+    double rw[2], rd[2];
+    ASSERT_TRUE(wrapped->Evaluate(pw, rw, nullptr));
+    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
+    EXPECT_NEAR(rw[0], rd[0], 1e-9);
+    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    ASSERT_TRUE(testing::jacobiansMatch(*wrapped, {bi.data(), bj.data(), &rho, bs.data()}, {&pm, &pm, nullptr, &pm},
+                                        kTol))
+        << "trial " << trial;
+    // Nested as the estimator nests them: S innermost, then the rig correction, then the time shift.
+    auto rig = std::make_shared<RigCorrectedFactor>(wrapped, std::vector<int>{0, 1}, c.T_B_R0);
+    const std::vector<Vec3> v = {Vec3(1.0, -0.5, 0.2), Vec3(0.3, 0.8, -0.1)};
+    const std::vector<Vec3> w = {Vec3(0.5, -1.0, 0.3), Vec3(-0.2, 0.4, 1.5)};
+    const TimeShiftedFactor nested(rig, {0, 1}, v, w);
+    double td = 0.003;
+    ASSERT_TRUE(testing::jacobiansMatch(nested, {bi.data(), bj.data(), &rho, bs.data(), br.data(), &td},
+                                        {&pm, &pm, nullptr, &pm, &pm, nullptr}, kTol))
+        << "trial " << trial;
+    // The rig and S together give the camera T_W_Bj * T_B_R * T_B_C1 * S.
+    const PointReprojectionFactor both(c.uv_host, c.uv_target, c.T_B_R * cam0(), c.T_B_R * cam1() * S, s);
+    const double* pr[5] = {bi.data(), bj.data(), &rho, bs.data(), br.data()};
+    ASSERT_TRUE(rig->Evaluate(pr, rw, nullptr));
+    ASSERT_TRUE(both.Evaluate(pd, rd, nullptr));
+    EXPECT_NEAR(rw[0], rd[0], 1e-9);
+    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+  }
+}
+
+TEST(StereoCorrection, Cam1LineResidualAndJacobians) {
+  std::mt19937 rng(18);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const PoseManifold pm;
+  const LineManifold lm;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Pose T_W_B = randomPose(rng, 1.0, 3.0);
+    const Pose S0 = randomPose(rng, 0.005, 0.001), S = randomPose(rng, 0.005, 0.001);
+    const Pose T_W_C = T_W_B * cam1() * S;
+    const Vec3 a_C(-0.8 + 0.2 * n(rng), 0.3 * n(rng), 4.0 + 0.5 * n(rng));
+    const Vec3 b_C(0.7 + 0.2 * n(rng), 0.3 * n(rng), 3.5 + 0.5 * n(rng));
+    Vec6 L = normalisePlucker(pluckerFromPoints(T_W_C * a_C, T_W_C * b_C));
+    const Vec2 s = a_C.head<2>() / a_C.z() + Vec2(n(rng), n(rng)) / kFocal;
+    const Vec2 e = b_C.head<2>() / b_C.z() + Vec2(n(rng), n(rng)) / kFocal;
+    auto inner = std::make_shared<LineReprojectionFactor>(s, e, cam1() * S0, kFocal);
+    const LineReprojectionFactor direct(s, e, cam1() * S, kFocal);
+    const auto f = RigCorrectedFactor::stereoCorrected(inner, 0, cam1() * S0, S0);
+    auto bp = block(T_W_B), bs = block(S);
+    const double* pw[3] = {bp.data(), L.data(), bs.data()};
+    const double* pd[2] = {bp.data(), L.data()};
+    double rw[2], rd[2];
+    ASSERT_TRUE(f->Evaluate(pw, rw, nullptr));
+    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
+    EXPECT_NEAR(rw[0], rd[0], 1e-9);
+    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    ASSERT_TRUE(testing::jacobiansMatch(*f, {bp.data(), L.data(), bs.data()}, {&pm, &lm, &pm}, kTol))
+        << "trial " << trial;
+  }
+}
+
+TEST(StereoCorrection, GeneralFormJacobians) {
+  // T_W_B * L * X * Rr with arbitrary constants (the form both corrections use).
+  std::mt19937 rng(19);
+  const PoseManifold pm;
+  for (int trial = 0; trial < 40; ++trial) {
+    const PointCase c = pointCase(rng, cam1());
+    auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, cam0(), cam1(),
+                                                           pointSqrtInformation(kFocal));
+    const RigCorrectedFactor f(inner, {0, 1}, randomPose(rng, 0.3, 0.1), randomPose(rng, 0.3, 0.1));
+    auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), bx = block(randomPose(rng, 0.01, 0.01));
+    double rho = c.rho;
+    ASSERT_TRUE(testing::jacobiansMatch(f, {bi.data(), bj.data(), &rho, bx.data()}, {&pm, &pm, nullptr, &pm}, kTol))
+        << "trial " << trial;
+  }
+}
+
+/// A factor with one entry of one block's Jacobian scaled: the checker must reject it.
+class CorruptEntry : public ceres::CostFunction {
+ public:
+  CorruptEntry(const ceres::CostFunction& f, int block, int entry) : f_(f), block_(block), entry_(entry) {
+    set_num_residuals(f.num_residuals());
+    *mutable_parameter_block_sizes() = f.parameter_block_sizes();
+  }
+  bool Evaluate(double const* const* p, double* r, double** J) const override {
+    if (!f_.Evaluate(p, r, J)) return false;
+    if (J != nullptr && J[block_] != nullptr) J[block_][entry_] *= 1.0 + 1e-3;
+    return true;
+  }
+
+ private:
+  const ceres::CostFunction& f_;
+  int block_, entry_;
+};
+
+TEST(StereoCorrection, SameFramePairFactorAndJacobians) {
+  std::mt19937 rng(20);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), depth(0.8, 12.0);
+  const PoseManifold pm;
+  for (int trial = 0; trial < 60; ++trial) {
+    const Pose S0 = randomPose(rng, 0.005, 0.001), S = randomPose(rng, 0.005, 0.001);
+    const Vec2 uv_l(0.5 * u(rng), 0.4 * u(rng));
+    double rho = 1.0 / depth(rng);
+    const Vec3 p_C1 = (cam1() * S).inverse() * (cam0() * (Vec3(uv_l.x(), uv_l.y(), 1.0) / rho));
+    const Vec2 uv_r = p_C1.head<2>() / p_C1.z() + Vec2(u(rng), u(rng)) * (1.5 / kFocal);
+    const double si = pointSqrtInformation(kFocal);
+    // Built with S0 in cam1's extrinsics; evaluated at S it is the plain factor with cam1 at T_B_C1 * S.
+    const PointStereoFactor built(uv_l, uv_r, cam0(), cam1() * S0, si);
+    const PointStereoCorrectedFactor f(built, S0);
+    const PointStereoCorrectedFactor g(uv_l, uv_r, cam0(), cam1() * S0, S0, si);
+    const PointStereoFactor direct(uv_l, uv_r, cam0(), cam1() * S, si);
+    auto bs = block(S);
+    const double* pw[2] = {&rho, bs.data()};
+    const double* pd[1] = {&rho};
+    double rf[2], rg[2], rd[2];
+    ASSERT_TRUE(f.Evaluate(pw, rf, nullptr));
+    ASSERT_TRUE(g.Evaluate(pw, rg, nullptr));
+    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
+    EXPECT_NEAR(rf[0], rd[0], 1e-9);
+    EXPECT_NEAR(rf[1], rd[1], 1e-9);
+    EXPECT_NEAR(rg[0], rd[0], 1e-9);
+    EXPECT_NEAR(rg[1], rd[1], 1e-9);
+    EXPECT_EQ(f.parameter_block_sizes(), (std::vector<int32_t>{1, 7}));
+    const std::vector<double*> params = {&rho, bs.data()};
+    ASSERT_TRUE(testing::jacobiansMatch(f, params, {nullptr, &pm}, kTol)) << "trial " << trial;
+    if (trial == 0) {
+      for (auto [b, entry] : {std::pair{0, 0}, std::pair{0, 1}, std::pair{1, 2}, std::pair{1, 7 + 4}}) {
+        const CorruptEntry bad(f, b, entry);
+        EXPECT_FALSE(testing::checkJacobians(bad, params, {nullptr, &pm}).ok(kTol)) << b << " " << entry;
+      }
+    }
   }
 }
 

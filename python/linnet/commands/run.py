@@ -184,6 +184,9 @@ def _print_summary(summary: dict, out: Path) -> None:
         c = summary["extrinsics_correction"]
         rows.append(("extrinsics correction (online)",
                      f"{c['rotation_deg']:.3f} deg, {1e3 * c['translation_m']:.2f} mm"))
+    if "stereo_correction" in summary:
+        c = summary["stereo_correction"]
+        rows.append(("cam1 correction (online)", f"{c['rotation_deg']:.4f} deg, {1e3 * c['translation_m']:.3f} mm"))
     if "loop_closure" in summary:
         lc = summary["loop_closure"]
         rows.append(("loop closure", f"{lc['loops']} loops, largest correction {lc['largest_correction_m']:.3f} m"))

@@ -40,6 +40,8 @@ struct EstimatorOutput {
   int reinitialisations = 0;   // so far
   Pose T_B_R;                  // online correction of the rig's extrinsics (cameras at T_B_R * T_B_Ci); identity
                                // unless estimator.extrinsics.estimate
+  Pose S_C1;                   // online correction of cam1 relative to cam0 (cam1 at T_B_R * T_B_C1 * S_C1);
+                               // identity unless estimator.extrinsics.estimate_stereo
   double time_offset_s = 0.0;  // camera-to-IMU time offset in use (estimator.time_offset), s
   double solve_ms = 0.0;       // back-end wall time for this frame
 };

@@ -242,10 +242,22 @@ struct ExtrinsicsOptions {
                                       // s. Estimated, it costs about 20% CPU (6 more dimensions in each landmark's
                                       // Schur update). 9 replays, mean APE: all along 0.0332 m, 60 s 0.0332, 40 s
                                       // 0.0334; 20 s had not converged (0.0362 then, against 0.0353 all along)
+  // cam1 relative to cam0 (a correction S of cam1's pose, cam1 at T_B_R * T_B_C1 * S), refined with the rig and held
+  // with it. A disparity bias of a few hundredths of a pixel (relative yaw, principal points) is a scale error of the
+  // stereo depths that grows with depth, which the IMU then fights (MH_01 hall hard: 0.45 % scale error).
+  bool estimate_stereo = true;        // refine cam1 relative to cam0 too (stereo rigs only)
+  double prior_stereo_rotation_deg = 0.02;   // prior sigma of cam1's rotation correction (per axis), deg: a stereo
+                                             // calibration's 0.01 deg with 0.1 px principal points per camera
+  double prior_stereo_translation_m = 1e-4;  // prior sigma of cam1's translation correction (per axis), m
 
   template <class V>
   void visit(V& v) {
     v("estimate", estimate, "refine the camera-IMU extrinsics (common to both cameras) online");
+    v("estimate_stereo", estimate_stereo, "also refine cam1 relative to cam0 (with the rig, held with it)");
+    v("prior_stereo_rotation_deg", prior_stereo_rotation_deg, "prior sigma of cam1's rotation correction, deg", 1e-6,
+      30.0);
+    v("prior_stereo_translation_m", prior_stereo_translation_m, "prior sigma of cam1's translation correction, m",
+      1e-9, 1.0);
     v("prior_rotation_deg", prior_rotation_deg, "prior sigma of the extrinsic rotation correction, deg", 1e-6, 30.0);
     v("prior_translation_m", prior_translation_m, "prior sigma of the extrinsic translation correction, m", 1e-9,
       1.0);

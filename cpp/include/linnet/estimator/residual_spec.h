@@ -59,6 +59,11 @@ struct ResidualSpec {
   bool line = false;                   // a line residual (its own Huber threshold), else a point or IMU residual
   BlockList<double*> blocks;           // parameter blocks, in the cost function's order
   BlockList<std::int64_t> keys;        // the same blocks as marginalisation keys
+  std::int8_t cam1 = kNoCam1;          // where cam1 enters (the online stereo correction): kNoCam1, kCam1Pair (the
+                                       // same-frame left-right point residual, PointStereoFactor) or the index of
+                                       // the pose block whose frame is observed through cam1
+  static constexpr std::int8_t kNoCam1 = -1;
+  static constexpr std::int8_t kCam1Pair = -2;
 };
 
 /// Marginalisation keys of landmark blocks. Frame blocks use frameBlockKey() (>= 0), landmarks negative keys.
@@ -69,5 +74,8 @@ inline std::int64_t lineBlockKey(std::int64_t landmark_id) { return -(2 * landma
 inline constexpr std::int64_t kRigBlockKey = 2;
 /// Key of the online camera-to-IMU time offset (1 value, seconds); likewise.
 inline constexpr std::int64_t kTimeOffsetBlockKey = 3;
+/// Key of the online stereo correction S of cam1 relative to cam0 (factors/pose_wrappers.h); likewise (4 id + 2 with
+/// id 1: no frame block has it).
+inline constexpr std::int64_t kStereoBlockKey = 6;
 
 }  // namespace linnet

@@ -43,6 +43,8 @@ struct RunSummary {
   bool stereo = true;                     // the run used cam0 + cam1 (false: monocular)
   bool extrinsics_estimated = false;      // estimator.extrinsics.estimate
   Pose extrinsics_correction;             // the last pose's online rig correction T_B_R (cameras at T_B_R * T_B_Ci)
+  bool stereo_correction_estimated = false;  // estimator.extrinsics.estimate_stereo (with estimate, stereo runs)
+  Pose stereo_correction;                 // the last pose's online correction S of cam1 (at T_B_R * T_B_C1 * S)
   bool time_offset_estimated = false;     // estimator.time_offset.estimate
   double time_offset_s = 0.0;             // the last pose's camera-to-IMU time offset (camera stamp - capture), s
   bool loop_enabled = false;              // loop.enabled (and stereo)

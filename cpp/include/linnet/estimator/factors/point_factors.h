@@ -55,9 +55,35 @@ class PointStereoFactor : public ceres::SizedCostFunction<2, 1> {
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
 
+  const Vec2& uvLeft() const { return uv_left_; }
+  const Vec2& uvRight() const { return uv_right_; }
+  const Pose& T_C1_C0() const { return T_C1_C0_; }
+  double sqrtInfo() const { return sqrt_info_; }
+
  private:
   Vec2 uv_left_, uv_right_;
   Pose T_C1_C0_;
+  double sqrt_info_;
+};
+
+/// Kind (3) with cam1 refined online: cam1 at T_B_C1 * S, S a correction block (7, PoseManifold; see
+/// RigCorrectedFactor::stereoCorrected). Built with the extrinsics of an earlier correction S0 (T_B_C1 here contains
+/// it), evaluated at S:
+///     p_C1 = S^-1 S0 T_C1_C0 (f / rho),   dp/dt_S = -R_S^T,   dp/dphi_S = [p]x,   dp/drho = R_S^T R_S0 R_C1_C0 (-f / rho^2)
+/// Blocks: inverse depth (1), S (7; its Jacobian in the tangent [dt, dphi] through TangentJacobians).
+class PointStereoCorrectedFactor : public ceres::SizedCostFunction<2, 1, 7>, public TangentJacobians {
+ public:
+  PointStereoCorrectedFactor(const Vec2& uv_left, const Vec2& uv_right, const Pose& T_B_C0, const Pose& T_B_C1,
+                             const Pose& S0, double sqrt_info);
+  /// The kind (3) residual `f` (built with the correction S0), now with S as a block.
+  PointStereoCorrectedFactor(const PointStereoFactor& f, const Pose& S0);
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const override;
+
+ private:
+  Vec2 uv_left_, uv_right_;
+  Pose S0_T_C1_C0_;  // S0 * T_C1_C0
   double sqrt_info_;
 };
 
