@@ -27,7 +27,7 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
   const bool rig = options_.extrinsics.estimate && !rig_held_;
   const bool time = options_.time_offset.estimate && !time_offset_held_;
   if (!rig && !time) return;
-  const bool stereo = rig && stereoEstimated();
+  const bool stereo = rig && stereoEstimated() && calibration_moving_s_ >= options_.extrinsics.stereo_from_s;
   const Pose T_B_C1 = stereo ? rig_applied_ * *T_B_C1_ * stereo_applied_ : Pose::identity();  // as in the landmarks
   for (ResidualSpec& r : *residuals) {
     // cam1's correction applies to cam1's pose on the body, so it is the innermost wrapper.
