@@ -47,7 +47,7 @@ class EstimatorCore {
   void addImu(const ImuSample& s);
   EstimatorOutput addFrame(const FrameObservations& obs);
   std::vector<Vec3> landmarkPositions() const { return points_.positions(window_); }
-  std::vector<MapLine> mapLines() const { return lines_.mapLines(); }
+  std::vector<MapLine> mapLines() const { return lines_.mapLines(&window_); }
   std::vector<std::pair<Timestamp, Pose>> windowPoses() const {
     std::vector<std::pair<Timestamp, Pose>> out;
     for (int i = 0; i < window_.size(); ++i) out.emplace_back(window_[i].t, window_[i].T_W_B());

@@ -155,6 +155,10 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
 
 void LineLandmarks::archive(const LineLandmark& lm) {
   if (!lm.triangulated || !lm.has_extent) return;
+  map_[lm.id] = mapLineOf(lm, lm.left_window);
+}
+
+MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineSighting>& sightings) const {
   MapLine m;
   m.id = lm.id;
   m.a = lm.a;
@@ -163,11 +167,11 @@ void LineLandmarks::archive(const LineLandmark& lm) {
   LineRefinementOptions ro;
   ro.focal_px = focal_length_;
   ro.huber_px = options_.huber_px * options_.pixel_sigma;
-  if (options_.map_refine && refineLine(lm.left_window, ro, &L)) {
+  if (options_.map_refine && refineLine(sightings, ro, &L)) {
     // The extent again, on the refined line: the extreme back-projected endpoints of all its sightings.
     LineLandmark refined;
     refined.setL(L);
-    for (const LineSighting& o : lm.left_window) {
+    for (const LineSighting& o : sightings) {
       Vec3 a, b;
       if (backProject(L, o.T_W_C, o.s, o.e, &a, &b)) extend(refined, a, b);
     }
@@ -179,7 +183,7 @@ void LineLandmarks::archive(const LineLandmark& lm) {
   m.observations = lm.observations;
   m.t_last = lm.t_last;
   m.angle_deg = std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad;
-  map_[lm.id] = m;
+  return m;
 }
 
 void LineLandmarks::removeFrame(const Window& window, FrameId frame) {
@@ -325,12 +329,25 @@ int LineLandmarks::countUsed() const {
   return n;
 }
 
-std::vector<MapLine> LineLandmarks::mapLines() const {
+std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
   std::map<std::int64_t, MapLine> all = map_;
   for (const auto& [id, lm] : landmarks_) {
     if (!lm.triangulated || !lm.has_extent) continue;
-    all[id] = MapLine{id, lm.a, lm.b, lm.observations, lm.t_last,
-                      std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad};
+    if (window == nullptr || !options_.map_refine) {
+      all[id] = MapLine{id, lm.a, lm.b, lm.observations, lm.t_last,
+                        std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad};
+      continue;
+    }
+    // Its sightings that left the window, then those in it (as removeFrame will add them).
+    std::vector<LineSighting> sightings = lm.left_window;
+    for (const auto& [fid, o] : lm.obs) {
+      const WindowFrame* f = window->find(fid);
+      if (f == nullptr) continue;
+      const Pose T_W_B = f->T_W_B() * f->capture_shift;
+      sightings.push_back({T_W_B * T_B_C0_, o.s0, o.e0});
+      if (o.has_right) sightings.push_back({T_W_B * *T_B_C1_, o.s1, o.e1});
+    }
+    all[id] = mapLineOf(lm, sightings);
   }
   std::vector<MapLine> out;
   out.reserve(all.size());

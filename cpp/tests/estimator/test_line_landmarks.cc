@@ -274,6 +274,30 @@ TEST(LineLandmarks, ALineLeavingTheWindowIsRefinedOnAllItsObservations) {
   }
 }
 
+TEST(LineLandmarks, ALineStillInTheWindowIsRefinedForTheMapToo) {
+  // At the end of a run some lines are still in the window. Given the window, mapLines() refines them like the lines
+  // that left it. The line is triangulated while the window's poses are 5 cm off (its estimate and extent are off
+  // too); at the poses put right, one frame leaves (its sightings kept) and two stay in.
+  Window w = makeWindow(3);
+  LineLandmarks lines = observedLines(w);
+  const Pose shift(Quat::Identity(), Vec3(0.05, 0.0, 0.0));
+  for (int k = 0; k < 3; ++k) w[k].setPose(shift * w[k].T_W_B());
+  ASSERT_EQ(lines.triangulate(w), 2);
+  for (int k = 0; k < 3; ++k) w[k].setPose(shift.inverse() * w[k].T_W_B());
+  lines.removeFrame(w, 0);
+  ASSERT_EQ(lines.all().count(7), 1u);
+  const auto find7 = [](const std::vector<MapLine>& map) {
+    return *std::find_if(map.begin(), map.end(), [](const MapLine& m) { return m.id == 7; });
+  };
+  const MapLine plain = find7(lines.mapLines());  // without the window: its estimate, 5 cm off
+  EXPECT_GT(segmentDistance(plain.a, plain.b, kA), 0.04);
+  const MapLine refined = find7(lines.mapLines(&w));
+  EXPECT_LT(segmentDistance(refined.a, refined.b, kA) + segmentDistance(refined.a, refined.b, kB), 1e-4);
+  EXPECT_NEAR((refined.b - refined.a).norm(), (kB - kA).norm(), 1e-4);
+  EXPECT_EQ(refined.observations, plain.observations);
+  EXPECT_EQ(refined.t_last, plain.t_last);
+}
+
 TEST(LineLandmarks, SightingsKeptForTheMapStayBounded) {
   // A camera at rest drops a frame per image while a line stays tracked: its sightings must not grow without bound.
   Window w;

@@ -91,8 +91,10 @@ class LineLandmarks {
   int countUsed() const;
   /// Lines observed in `frame` (triangulated or not).
   int countObservedIn(FrameId frame) const;
-  /// The map: lines that left the window plus the window's triangulated lines with an extent.
-  std::vector<MapLine> mapLines() const;
+  /// The map: lines that left the window plus the window's triangulated lines with an extent. Given the window,
+  /// its lines are refined as the lines that left it are (options.map_refine): on their sightings that left the
+  /// window and those still in it, at the window's poses.
+  std::vector<MapLine> mapLines(const Window* window = nullptr) const;
   const std::map<std::int64_t, LineLandmark>& all() const { return landmarks_; }
   const LineRejectionStats& lastRejections() const { return rejections_; }
 
@@ -118,6 +120,9 @@ class LineLandmarks {
   }
   /// Into the map, refined on all its sightings first when options.map_refine.
   void archive(const LineLandmark& lm);
+  /// lm as a map line, refined on `sightings` when options.map_refine (the window estimate otherwise, or if the
+  /// refinement fails).
+  MapLine mapLineOf(const LineLandmark& lm, const std::vector<LineSighting>& sightings) const;
 
   LineOptions options_;
   double focal_length_;
