@@ -28,7 +28,7 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
   const bool time = options_.time_offset.estimate && !time_offset_held_;
   if (!rig && !time) return;
   const bool stereo = rig && stereoEstimated() && calibration_moving_s_ >= options_.extrinsics.stereo_from_s;
-  const Pose T_B_C1 = stereo ? rig_applied_ * *T_B_C1_ * stereo_applied_ : Pose::identity();  // as in the landmarks
+  const Pose T_B_C1 = stereo ? appliedT_B_C1() : Pose::identity();
   for (ResidualSpec& r : *residuals) {
     // cam1's correction applies to cam1's pose on the body, so it is the innermost wrapper.
     if (stereo && r.cam1 == ResidualSpec::kCam1Pair) {
@@ -101,7 +101,7 @@ void EstimatorCore::applyRig() {
   rig_applied_ = rigCorrection();
   if (stereoEstimated()) stereo_applied_ = stereoCorrection();
   std::optional<Pose> c1;
-  if (T_B_C1_.has_value()) c1 = rig_applied_ * *T_B_C1_ * stereo_applied_;
+  if (T_B_C1_.has_value()) c1 = appliedT_B_C1();
   points_.setExtrinsics(rig_applied_ * T_B_C0_, c1);
   lines_.setExtrinsics(rig_applied_ * T_B_C0_, c1);
 }

@@ -117,6 +117,8 @@ class EstimatorCore {
   Pose T_B_C0() const { return rigCorrection() * T_B_C0_; }
   /// The current stereo correction S of cam1 (identity unless estimated).
   Pose stereoCorrection() const { return rig_held_ ? stereo_applied_ : poseFromBlock(stereo_.data()); }
+  /// cam1's extrinsics as the landmarks' residuals use them (the corrections of the last applyRig); needs T_B_C1_.
+  Pose appliedT_B_C1() const { return rig_applied_ * *T_B_C1_ * stereo_applied_; }
   /// Whether cam1's correction S is a block of the window now.
   bool stereoEstimated() const {
     return options_.extrinsics.estimate && options_.extrinsics.estimate_stereo && T_B_C1_.has_value();

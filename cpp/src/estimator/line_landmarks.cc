@@ -186,15 +186,20 @@ MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineS
   return m;
 }
 
+void LineLandmarks::appendSightings(const WindowFrame& f, const LineFrameObs& o,
+                                   std::vector<LineSighting>* out) const {
+  const Pose T_W_B = f.T_W_B() * f.capture_shift;
+  out->push_back({T_W_B * T_B_C0_, o.s0, o.e0});
+  if (o.has_right) out->push_back({T_W_B * *T_B_C1_, o.s1, o.e1});
+}
+
 void LineLandmarks::removeFrame(const Window& window, FrameId frame) {
   const WindowFrame* f = window.find(frame);
   for (auto it = landmarks_.begin(); it != landmarks_.end();) {
     LineLandmark& lm = it->second;
     const auto o = lm.obs.find(frame);
     if (o != lm.obs.end() && options_.map_refine && f != nullptr) {
-      const Pose T_W_B = f->T_W_B() * f->capture_shift;
-      lm.left_window.push_back({T_W_B * T_B_C0_, o->second.s0, o->second.e0});
-      if (o->second.has_right) lm.left_window.push_back({T_W_B * *T_B_C1_, o->second.s1, o->second.e1});
+      appendSightings(*f, o->second, &lm.left_window);
       // Bounded: a line tracked for long (a camera at rest drops a frame per image) keeps every other sighting once
       // it has 2 x kMaxSightings, so memory and the refinement's cost stay bounded; the first is always kept.
       if (lm.left_window.size() > 2 * kMaxSightings) {
@@ -340,13 +345,8 @@ std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
     }
     // Its sightings that left the window, then those in it (as removeFrame will add them).
     std::vector<LineSighting> sightings = lm.left_window;
-    for (const auto& [fid, o] : lm.obs) {
-      const WindowFrame* f = window->find(fid);
-      if (f == nullptr) continue;
-      const Pose T_W_B = f->T_W_B() * f->capture_shift;
-      sightings.push_back({T_W_B * T_B_C0_, o.s0, o.e0});
-      if (o.has_right) sightings.push_back({T_W_B * *T_B_C1_, o.s1, o.e1});
-    }
+    for (const auto& [fid, o] : lm.obs)
+      if (const WindowFrame* f = window->find(fid)) appendSightings(*f, o, &sightings);
     all[id] = mapLineOf(lm, sightings);
   }
   std::vector<MapLine> out;

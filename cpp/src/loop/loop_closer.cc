@@ -38,7 +38,6 @@ void LoopCloser::queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& le
 
 int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& window,
                              const std::vector<std::pair<std::int64_t, Vec3>>& landmarks) {
-  int loops = 0;
   for (Queued& q : queued_) {
     const auto it = std::find_if(window.begin(), window.end(), [&](const auto& w) { return w.first == q.t; });
     if (it == window.end()) continue;
@@ -51,19 +50,14 @@ int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& wind
     }
   }
   // Queued keyframes older than the window's oldest frame have left it: their estimates are final.
-  const Timestamp oldest = window.empty() ? std::numeric_limits<Timestamp>::max() : window.front().first;
-  while (!queued_.empty() && queued_.front().t < oldest) {
-    Queued q = std::move(queued_.front());
-    queued_.pop_front();
-    setPlaceDepths(q.p_W, q.T_W_B * T_B_C0_, &q.place);
-    loops += insert(q.t, q.T_W_B, std::move(q.place)) ? 1 : 0;
-  }
-  return loops;
+  return insertQueuedBefore(window.empty() ? std::numeric_limits<Timestamp>::max() : window.front().first);
 }
 
-int LoopCloser::flush() {
+int LoopCloser::flush() { return insertQueuedBefore(std::numeric_limits<Timestamp>::max()); }
+
+int LoopCloser::insertQueuedBefore(Timestamp limit) {
   int loops = 0;
-  while (!queued_.empty()) {
+  while (!queued_.empty() && queued_.front().t < limit) {
     Queued q = std::move(queued_.front());
     queued_.pop_front();
     setPlaceDepths(q.p_W, q.T_W_B * T_B_C0_, &q.place);

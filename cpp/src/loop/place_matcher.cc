@@ -56,13 +56,9 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
     if (kp.class_id >= 0 && kp.class_id < n_tracked) {
       const PointObservation& p = points[static_cast<std::size_t>(kp.class_id)];
       uv = p.uv0;
-      Vec3 X = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+      Vec3 X;
       if (!p.has_right || triangulateChecked(views, {p.uv0, p.uv1}, tri, &X) != TriangulationStatus::kOk)
         X = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-      if (X.allFinite()) {
-        f.p_C.push_back(X);
-        f.descriptors_3d.push_back(desc.row(k));
-      }
       f.tracked_ids.push_back(p.id);
       f.tracked_descriptors.push_back(desc.row(k));
       f.tracked_stereo_p_C.push_back(X);
@@ -72,6 +68,7 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
     f.uv.push_back(uv);
     f.descriptors_2d.push_back(desc.row(k));
   }
+  setPlaceDepths({}, Pose::identity(), &f);  // the stereo positions until the odometry's landmarks are known
   return f;
 }
 

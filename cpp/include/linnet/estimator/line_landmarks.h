@@ -120,6 +120,8 @@ class LineLandmarks {
   }
   /// Into the map, refined on all its sightings first when options.map_refine.
   void archive(const LineLandmark& lm);
+  /// Appends frame f's sightings of a line (cam0, and cam1 if matched) at f's pose to `out`.
+  void appendSightings(const WindowFrame& f, const LineFrameObs& o, std::vector<LineSighting>* out) const;
   /// lm as a map line, refined on `sightings` when options.map_refine (the window estimate otherwise, or if the
   /// refinement fails).
   MapLine mapLineOf(const LineLandmark& lm, const std::vector<LineSighting>& sightings) const;

@@ -66,10 +66,6 @@ class LoopCloser {
   Pose latestCorrection() const;
 
   const std::vector<LoopEvent>& loops() const { return loops_; }
-  /// Keyframe k (in insertion order): time, final odometry pose and loop-corrected pose.
-  Timestamp keyframeTime(std::size_t k) const { return keyframes_[k].t; }
-  const Pose& keyframeOdometry(std::size_t k) const { return graph_.odometryPose(k); }
-  Pose keyframeCorrected(std::size_t k) const { return graph_.pose(k); }
   std::size_t keyframes() const { return keyframes_.size(); }
 
  private:
@@ -85,6 +81,9 @@ class LoopCloser {
     std::vector<Vec3> p_W;  // the window's landmark position of each tracked corner at T_W_B's estimate (NaN: none)
   };
   bool insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place);
+  /// Inserts the queued keyframes older than `limit`, with their corners at their last landmark positions; returns
+  /// the loops closed.
+  int insertQueuedBefore(Timestamp limit);
   bool tryLoop(std::size_t new_index);
 
   LoopOptions options_;
