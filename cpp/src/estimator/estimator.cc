@@ -470,6 +470,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   points_.triangulate(window_);
   {
     ScopedMs timer(&line_ms_);
+    lines_.gateNewest(window_);
     lines_.triangulate(window_);
   }
   solveWindow(options_.solver.max_num_iterations);

@@ -242,6 +242,59 @@ double LineLandmarks::meanErrorPx(const Window& window, const LineLandmark& lm) 
   return n == 0 ? 0.0 : sum / n;
 }
 
+int LineLandmarks::dropBadSightings(const Window& window, LineLandmark& lm) const {
+  // One bad frame of a good track (a segment matched to a neighbouring parallel edge, a stereo mismatch) would keep
+  // pulling its frame's pose through the robust loss' linear tail; the line keeps its other sightings.
+  const Vec6 L = lm.L();
+  int dropped = 0;
+  for (auto it = lm.obs.begin(); it != lm.obs.end();) {
+    const WindowFrame* f = window.find(it->first);
+    LineFrameObs& o = it->second;
+    if (f == nullptr) {
+      ++it;
+      continue;
+    }
+    const Pose T_W_B = f->T_W_B();
+    if (lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_) > options_.max_observation_px) {
+      it = lm.obs.erase(it);
+      ++dropped;
+      continue;
+    }
+    if (o.has_right &&
+        lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_) > options_.max_observation_px) {
+      o.has_right = false;
+      ++dropped;
+    }
+    ++it;
+  }
+  return dropped;
+}
+
+int LineLandmarks::gateNewest(const Window& window) {
+  // Before the solve, at the newest frame's predicted pose: a bad sighting would pull that pose in the very solve
+  // whose result is the output (the check after the solve comes too late for it). Only lines already solved have
+  // geometry good enough to judge by.
+  const WindowFrame& newest = window.newest();
+  const Pose T_W_B = newest.T_W_B();
+  int dropped = 0;
+  for (auto& [id, lm] : landmarks_) {
+    if (!lm.solved || !lm.triangulated) continue;
+    const auto it = lm.obs.find(newest.id);
+    if (it == lm.obs.end()) continue;
+    const Vec6 L = lm.L();
+    LineFrameObs& o = it->second;
+    if (lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_) > options_.max_observation_px) {
+      lm.obs.erase(it);
+      ++dropped;
+    } else if (o.has_right && lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_) >
+                                  options_.max_observation_px) {
+      o.has_right = false;
+      ++dropped;
+    }
+  }
+  return dropped;
+}
+
 int LineLandmarks::rejectOutliers(const Window& window) {
   rejections_ = LineRejectionStats{};
   const WindowFrame& newest = window.newest();
@@ -259,6 +312,13 @@ int LineLandmarks::rejectOutliers(const Window& window) {
     if (!L.allFinite() || meanErrorPx(window, lm) > options_.outlier_px) {
       ++rejections_.reprojection;
       bad = true;
+    } else {
+      // A good line with one bad frame keeps its other sightings.
+      rejections_.sightings += dropBadSightings(window, lm);
+      if (lm.obs.size() < 2) {
+        ++rejections_.reprojection;
+        bad = true;
+      }
     }
     const auto o = lm.obs.find(newest.id);
     if (!bad && o != lm.obs.end()) {

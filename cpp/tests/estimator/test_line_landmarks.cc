@@ -350,5 +350,66 @@ TEST(LineLandmarks, RejectOutliersRemovesAShiftedLineAndTracksTheExtent) {
   }
 }
 
+/// The observation of `a`-`b` from T_W_B with its cam0 (or cam1) segment moved `px` pixels across the line.
+LineObservation shifted(std::int64_t id, const Pose& T_W_B, const Vec3& a, const Vec3& b, double px, bool cam1) {
+  LineObservation o = observation(id, T_W_B, a, b, true);
+  Vec2& s = cam1 ? o.s1 : o.s0;
+  Vec2& e = cam1 ? o.e1 : o.e0;
+  const Vec2 d = (e - s).normalized();
+  const Vec2 normal(-d.y(), d.x());
+  s += px / kFocal * normal;
+  e += px / kFocal * normal;
+  return o;
+}
+
+/// Line 7 seen exactly in frames 0 and 2 and as `middle` in frame 1, triangulated and set to the true line.
+LineLandmarks withMiddleSighting(const Window& w, const LineObservation& middle) {
+  LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+  lines.observe(0, w[0].t, {observation(7, w[0].T_W_B(), kA, along(0.6), true)});
+  lines.observe(1, w[1].t, {middle});
+  lines.observe(2, w[2].t, {observation(7, w[2].T_W_B(), along(0.5), kB, true)});
+  EXPECT_EQ(lines.triangulate(w), 1);
+  Eigen::Map<Vec6>(lines.residuals(w)[0].blocks[1]) = normalisePlucker(pluckerFromPoints(kA, kB));
+  return lines;
+}
+
+TEST(LineLandmarks, OneBadSightingIsDroppedAndTheLineKept) {
+  Window w = makeWindow(3);
+  for (const bool cam1 : {false, true}) {
+    // Frame 1's segment (cam0, or only cam1) lies 12 px off a line that the other sightings fit exactly: the mean
+    // error (2 px over six sightings) keeps the line, the sighting goes.
+    LineLandmarks lines = withMiddleSighting(w, shifted(7, w[1].T_W_B(), along(0.3), along(0.8), 12.0, cam1));
+    EXPECT_EQ(lines.rejectOutliers(w), 0);
+    EXPECT_EQ(lines.lastRejections().sightings, 1);
+    const LineLandmark& lm = lines.all().at(7);
+    EXPECT_EQ(lm.obs.size(), cam1 ? 3u : 2u) << cam1;
+    if (cam1) {
+      EXPECT_FALSE(lm.obs.at(1).has_right);
+    }
+    EXPECT_EQ(lines.residuals(w).size(), cam1 ? 5u : 4u);  // cam1 alone, or the frame's cam0 and cam1
+  }
+  // Within max_observation_px (4 px): kept.
+  LineLandmarks lines = withMiddleSighting(w, shifted(7, w[1].T_W_B(), along(0.3), along(0.8), 4.0, false));
+  EXPECT_EQ(lines.rejectOutliers(w), 0);
+  EXPECT_EQ(lines.lastRejections().sightings, 0);
+  EXPECT_EQ(lines.all().at(7).obs.size(), 3u);
+}
+
+TEST(LineLandmarks, TheNewestFramesBadSightingIsGatedBeforeTheSolve) {
+  Window w = makeWindow(3);
+  for (const double px : {0.5, 8.0}) {
+    LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+    lines.observe(0, w[0].t, {observation(7, w[0].T_W_B(), kA, along(0.6), true)});
+    lines.observe(1, w[1].t, {observation(7, w[1].T_W_B(), along(0.3), kB, true)});
+    ASSERT_EQ(lines.triangulate(w), 1);
+    lines.observe(2, w[2].t, {shifted(7, w[2].T_W_B(), along(0.5), kB, px, false)});
+    EXPECT_EQ(lines.gateNewest(w), 0);  // never solved yet: no judgement
+    lines.residuals(w);                 // now it has been
+    EXPECT_EQ(lines.gateNewest(w), px > 5.0 ? 1 : 0) << px;
+    EXPECT_EQ(lines.all().at(7).obs.count(2), px > 5.0 ? 0u : 1u) << px;
+    EXPECT_EQ(lines.all().at(7).obs.count(1), 1u);
+  }
+}
+
 }  // namespace
 }  // namespace linnet

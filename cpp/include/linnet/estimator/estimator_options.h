@@ -160,6 +160,10 @@ struct LineOptions {
   double huber_px = 1.0;              // threshold of that loss on the whitened line residual (units of pixel_sigma)
   double outlier_px = 3.0;            // lines whose mean endpoint distance exceeds this after a solve are removed
                                       // (thesis: 3 px), pixels
+  double max_observation_px = 5.0;    // one sighting (a frame's cam0 or cam1 segment) whose mean endpoint distance
+                                      // exceeds this after a solve is dropped from its line, which stays (a mismatched
+                                      // frame of a good track); about the 99.9 % bound of a 2-D residual at
+                                      // pixel_sigma 1.5 px, pixels
   double min_plane_angle_deg = 1.0;   // triangulation: smallest angle between the two back-projection planes (stereo
                                       // pair or two frames; small = line along the baseline / motion), deg
   double min_view_angle_deg = 5.0;    // a line seen within this angle of end-on (direction vs the viewing ray of its
@@ -188,6 +192,8 @@ struct LineOptions {
     v.choice("loss", loss, "robust loss of line residuals", {"huber", "cauchy"});
     v("huber_px", huber_px, "threshold of the line residuals' robust loss, whitened units", 0.01, 100.0);
     v("outlier_px", outlier_px, "mean endpoint distance limit, pixels", 0.1, 1000.0);
+    v("max_observation_px", max_observation_px, "one sighting's endpoint distance limit (sighting dropped), pixels",
+      0.1, 1000.0);
     v("min_plane_angle_deg", min_plane_angle_deg, "smallest back-projection plane angle to triangulate, deg", 0.0,
       90.0);
     v("min_view_angle_deg", min_view_angle_deg, "lines seen closer to end-on are removed, deg", 0.0, 90.0);

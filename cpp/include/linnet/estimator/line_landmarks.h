@@ -56,6 +56,7 @@ struct LineLandmark {
 /// Why lines were removed by rejectOutliers (for logs and tests).
 struct LineRejectionStats {
   int reprojection = 0;  // mean endpoint distance above outlier_px
+  int sightings = 0;     // single sightings above max_observation_px dropped (their lines kept)
   int depth = 0;         // an endpoint behind a camera / out of the depth range, or too long
   int end_on = 0;        // seen end-on (degenerate)
   int drifted = 0;       // newest observation off the line's extent
@@ -82,6 +83,9 @@ class LineLandmarks {
   /// Removes used lines that fail a check after a solve (reprojection, depth, end-on, drift). Updates the extents of
   /// the remaining lines with the newest frame's observation. Returns how many were removed.
   int rejectOutliers(const Window& window);
+  /// Before a solve: drops the newest frame's sightings of solved lines that lie farther than
+  /// options.max_observation_px from the line's projection at the frame's current (predicted) pose; returns how many.
+  int gateNewest(const Window& window);
   /// Moves every triangulated, used line to the map and empties the window's lines (a new window starts).
   void clear();
 
@@ -109,6 +113,10 @@ class LineLandmarks {
   }
 
  private:
+  /// Drops the sightings of `lm` (a frame's cam0 segment with its cam1 one, or only cam1) farther than
+  /// options.max_observation_px from its projection; returns how many.
+  int dropBadSightings(const Window& window, LineLandmark& lm) const;
+
   /// Mean endpoint distance in pixels over the line's window observations (cam0 and cam1).
   double meanErrorPx(const Window& window, const LineLandmark& lm) const;
   /// Back-projects an observed segment onto the line: the two 3D points, false if a ray misses the depth range.
