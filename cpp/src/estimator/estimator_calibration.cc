@@ -29,6 +29,12 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
   if (!rig && !time) return;
   const bool stereo = rig && stereoEstimated() && calibration_moving_s_ >= options_.extrinsics.stereo_from_s;
   const Pose T_B_C1 = stereo ? appliedT_B_C1() : Pose::identity();
+  // One memo per kind of wrapper: the rig's constants are common to all residuals (tag 0), the stereo correction's
+  // and the time shift's are their frame's (tagged by frame).
+  const auto rig_memo = std::make_shared<PoseTransformMemo>();
+  const auto stereo_memo = std::make_shared<PoseTransformMemo>();
+  const auto time_memo = std::make_shared<PoseTransformMemo>();
+  const auto frameOf = [&](const ResidualSpec& r, int b) { return r.keys[static_cast<std::size_t>(b)] / 4; };
   for (ResidualSpec& r : *residuals) {
     // cam1's correction applies to cam1's pose on the body, so it is the innermost wrapper.
     if (stereo && r.cam1 == ResidualSpec::kCam1Pair) {
@@ -37,8 +43,10 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
       r.blocks.push_back(stereo_.data());
       r.keys.push_back(kStereoBlockKey);
     } else if (stereo && r.cam1 >= 0) {
-      const WindowFrame* f = window_.find(r.keys[static_cast<std::size_t>(r.cam1)] / 4);
-      r.cost = RigCorrectedFactor::stereoCorrected(r.cost, r.cam1, f->capture_shift * T_B_C1, stereo_applied_);
+      const WindowFrame* f = window_.find(frameOf(r, r.cam1));
+      auto wrapped = RigCorrectedFactor::stereoCorrected(r.cost, r.cam1, f->capture_shift * T_B_C1, stereo_applied_);
+      wrapped->useMemo(stereo_memo, {frameOf(r, r.cam1)});
+      r.cost = std::move(wrapped);
       r.blocks.push_back(stereo_.data());
       r.keys.push_back(kStereoBlockKey);
     }
@@ -47,19 +55,25 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
       if (r.keys[b] >= 0 && r.keys[b] % 4 == static_cast<int>(BlockKind::kPose)) poses.push_back(static_cast<int>(b));
     if (poses.empty()) continue;  // the same-frame stereo residual depends on neither
     // The rig correction applies to the time-shifted body pose, so it is the inner wrapper.
+    std::vector<std::int64_t> frames;
+    for (int b : poses) frames.push_back(frameOf(r, b));
     if (rig) {
-      r.cost = std::make_shared<RigCorrectedFactor>(r.cost, poses, rig_applied_);
+      auto wrapped = std::make_shared<RigCorrectedFactor>(r.cost, poses, rig_applied_);
+      wrapped->useMemo(rig_memo, std::vector<std::int64_t>(poses.size(), 0));
+      r.cost = std::move(wrapped);
       r.blocks.push_back(rig_.data());
       r.keys.push_back(kRigBlockKey);
     }
     if (time) {
       std::vector<Vec3> v, w;
-      for (int b : poses) {
-        const WindowFrame* f = window_.find(r.keys[static_cast<std::size_t>(b)] / 4);
+      for (std::int64_t id : frames) {
+        const WindowFrame* f = window_.find(id);
         v.push_back(f->v());
         w.push_back(f->gyr - f->bg());
       }
-      r.cost = std::make_shared<TimeShiftedFactor>(r.cost, poses, std::move(v), std::move(w));
+      auto wrapped = std::make_shared<TimeShiftedFactor>(r.cost, poses, std::move(v), std::move(w));
+      wrapped->useMemo(time_memo, frames);
+      r.cost = std::move(wrapped);
       r.blocks.push_back(time_offset_.data());
       r.keys.push_back(kTimeOffsetBlockKey);
     }

@@ -18,6 +18,26 @@ using TangentJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseTangentSize, Eigen::
 using TangentMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
 }  // namespace
 
+const PoseTransformMemo::Entry* PoseTransformMemo::find(std::int64_t tag, const double* body, const double* extra,
+                                                       int extra_size, bool derivatives) const {
+  for (const Entry& e : entries_) {
+    if (e.tag != tag || (derivatives && !e.derivatives)) continue;
+    if (std::equal(body, body + kPoseAmbientSize, e.body.begin()) &&
+        std::equal(extra, extra + extra_size, e.extra.begin()))
+      return &e;
+  }
+  return nullptr;
+}
+
+void PoseTransformMemo::store(const Entry& entry) {
+  if (entries_.size() < kCapacity) {
+    entries_.push_back(entry);
+    return;
+  }
+  entries_[next_] = entry;
+  next_ = (next_ + 1) % kCapacity;
+}
+
 PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
                                      int extra_size, bool extra_is_pose)
     : inner_(std::move(inner)),
@@ -37,6 +57,12 @@ PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner,
   sizes->push_back(extra_size);
 }
 
+void PoseWrappedFactor::useMemo(std::shared_ptr<PoseTransformMemo> memo, std::vector<std::int64_t> tags) {
+  if (tags.size() != pose_blocks_.size()) throw UsageError("PoseWrappedFactor::useMemo: one tag per pose block");
+  memo_ = std::move(memo);
+  memo_tags_ = std::move(tags);
+}
+
 bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
                                              double** jacobians) const {
   const int n_inner = static_cast<int>(inner_->parameter_block_sizes().size());
@@ -50,10 +76,37 @@ bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, do
   std::array<ExtraMap, kMaxPoses> d_extra;
   std::array<const double*, kMaxBlocks> inner_params{};
   std::copy(parameters, parameters + n_inner, inner_params.begin());
+  const bool derivatives = jacobians != nullptr;
+  const int extra_size = parameter_block_sizes()[static_cast<std::size_t>(n_inner)];
   for (std::size_t k = 0; k < n_poses; ++k) {
-    if (jacobians != nullptr) d_extra[k].resize(6, extra_tangent_);
-    const Pose T = transform(k, poseFromBlock(parameters[pose_blocks_[k]]), extra,
-                             jacobians != nullptr ? &d_body[k] : nullptr, jacobians != nullptr ? &d_extra[k] : nullptr);
+    const double* body = parameters[pose_blocks_[k]];
+    const PoseTransformMemo::Entry* memo =
+        memo_ != nullptr ? memo_->find(memo_tags_[k], body, extra, extra_size, derivatives) : nullptr;
+    Pose T;
+    if (memo != nullptr) {
+      T = memo->T;
+      if (derivatives) {
+        d_body[k] = memo->d_body;
+        d_extra[k] = memo->d_extra;
+      }
+    } else {
+      if (derivatives) d_extra[k].resize(6, extra_tangent_);
+      T = transform(k, poseFromBlock(body), extra, derivatives ? &d_body[k] : nullptr,
+                    derivatives ? &d_extra[k] : nullptr);
+      if (memo_ != nullptr) {
+        PoseTransformMemo::Entry e;
+        e.tag = memo_tags_[k];
+        std::copy(body, body + kPoseAmbientSize, e.body.begin());
+        std::copy(extra, extra + extra_size, e.extra.begin());
+        e.derivatives = derivatives;
+        e.T = T;
+        if (derivatives) {
+          e.d_body = d_body[k];
+          e.d_extra = d_extra[k];
+        }
+        memo_->store(e);
+      }
+    }
     setPose(T, moved[k].data());
     inner_params[static_cast<std::size_t>(pose_blocks_[k])] = moved[k].data();
   }

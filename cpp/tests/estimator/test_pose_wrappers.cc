@@ -229,6 +229,54 @@ TEST(TimeShiftedFactor, JacobiansAloneAndAroundTheRigCorrection) {
   }
 }
 
+TEST(PoseTransformMemo, SharedTransformsGiveTheSameResidualsAndJacobiansBitForBit) {
+  // Two residuals of the same two frames (time shift outside, rig inside, as the estimator nests them), one pair
+  // with memos shared as the estimator shares them and one without; evaluated at changing values (a memo must never
+  // answer for other inputs), with and without Jacobians in either order.
+  std::mt19937 rng(23);
+  std::normal_distribution<double> n(0.0, 1.0);
+  auto rnd = [&](double scale) { return Vec3(scale * n(rng), scale * n(rng), scale * n(rng)); };
+  const PointCase c = pointCase(rng, cam0());
+  const std::vector<Vec3> v = {rnd(1.0), rnd(1.0)}, w = {rnd(1.0), rnd(1.0)};
+  const auto rig_memo = std::make_shared<PoseTransformMemo>();
+  const auto time_memo = std::make_shared<PoseTransformMemo>();
+  std::vector<std::shared_ptr<TimeShiftedFactor>> plain, memoised;
+  for (int r = 0; r < 2; ++r) {
+    auto point = std::make_shared<PointReprojectionFactor>(c.uv_host + Vec2(0.01 * r, 0.0), c.uv_target,
+                                                           c.T_B_R0 * cam0(), c.T_B_R0 * cam0(),
+                                                           pointSqrtInformation(kFocal));
+    for (const bool memo : {false, true}) {
+      auto rig = std::make_shared<RigCorrectedFactor>(point, std::vector<int>{0, 1}, c.T_B_R0);
+      auto shifted = std::make_shared<TimeShiftedFactor>(rig, std::vector<int>{0, 1}, v, w);
+      if (memo) {
+        rig->useMemo(rig_memo, {0, 0});
+        shifted->useMemo(time_memo, {10, 11});  // the frames of blocks 0 and 1
+      }
+      (memo ? memoised : plain).push_back(shifted);
+    }
+  }
+  auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
+  double rho = c.rho, td = 0.003;
+  for (int step = 0; step < 6; ++step) {
+    if (step == 2) bi = block(c.T_W_Bi * randomPose(rng, 0.01, 0.01));
+    if (step == 3) br = block(c.T_B_R * randomPose(rng, 0.001, 0.001));
+    if (step == 4) td = 0.004;
+    const double* params[] = {bi.data(), bj.data(), &rho, br.data(), &td};
+    for (const bool with_jacobians : {step % 2 == 0, step % 2 != 0}) {
+      for (std::size_t r = 0; r < 2; ++r) {
+        std::array<double, 2> res_a{}, res_b{};
+        std::array<std::array<double, 14>, 5> ja{}, jb{};
+        double* jac_a[] = {ja[0].data(), ja[1].data(), ja[2].data(), ja[3].data(), ja[4].data()};
+        double* jac_b[] = {jb[0].data(), jb[1].data(), jb[2].data(), jb[3].data(), jb[4].data()};
+        ASSERT_TRUE(plain[r]->Evaluate(params, res_a.data(), with_jacobians ? jac_a : nullptr));
+        ASSERT_TRUE(memoised[r]->Evaluate(params, res_b.data(), with_jacobians ? jac_b : nullptr));
+        EXPECT_EQ(res_a, res_b) << "step " << step << " residual " << r;
+        EXPECT_EQ(ja, jb) << "step " << step << " residual " << r;
+      }
+    }
+  }
+}
+
 // --- cam1's stereo correction S (cam1 at T_B_C1 * S)
 
 TEST(StereoCorrection, Cam1PointResidualIsTheInnerFactorWithCam1Corrected) {

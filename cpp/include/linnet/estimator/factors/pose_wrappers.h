@@ -28,6 +28,8 @@
 //     body:   dp' = dp,  dth' = E^T dth;      offset: dp' = -v_k dt_d,  dth' = -w_k dt_d
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -35,11 +37,44 @@
 
 #include "linnet/core/pose.h"
 #include "linnet/estimator/factors/tangent_jacobians.h"
+#include "linnet/estimator/manifolds.h"
 
 namespace linnet {
 
+
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using ExtraMap = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;  // extra tangent -> transformed pose tangent
+
+/// Transformed poses shared by the wrappers of one solve. A frame's residuals all see the same body pose and
+/// calibration blocks, so with a memo each transform (and its derivatives) is computed once per frame and evaluation
+/// point instead of once per residual. An entry is found by a tag naming the wrapper's constants (the same tag must
+/// mean the same constants: one memo per kind of wrapper, tagged by frame where the constants are the frame's) and by
+/// the exact values of the body pose and the extra block, so it never goes stale. Not thread-safe: the window's
+/// solvers and marginaliser evaluate on one thread.
+class PoseTransformMemo {
+ public:
+  struct Entry {
+    std::int64_t tag = 0;
+    std::array<double, kPoseAmbientSize> body{};
+    std::array<double, kPoseAmbientSize> extra{};
+    bool derivatives = false;
+    Pose T;
+    Mat6 d_body;
+    ExtraMap d_extra;
+  };
+  /// The entry for these inputs (`extra_size` values at `extra`), or nullptr; one without derivatives does not answer
+  /// a call that wants them.
+  const Entry* find(std::int64_t tag, const double* body, const double* extra, int extra_size,
+                    bool derivatives) const;
+  /// Stores an entry; beyond kCapacity entries the oldest one is replaced.
+  void store(const Entry& entry);
+
+  static constexpr std::size_t kCapacity = 64;
+
+ private:
+  std::vector<Entry> entries_;
+  std::size_t next_ = 0;
+};
 
 class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
  public:
@@ -54,6 +89,10 @@ class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
 
   const ceres::CostFunction& inner() const { return *inner_; }
 
+  /// Shares transforms through `memo`; tags[k] names the constants of the k-th pose block's transform (see
+  /// PoseTransformMemo).
+  void useMemo(std::shared_ptr<PoseTransformMemo> memo, std::vector<std::int64_t> tags);
+
  protected:
   /// The pose handed to the inner factor for the k-th pose block, and the maps from the body's tangent (6 x 6) and
   /// the extra block's tangent (6 x tangent size, already sized) to its tangent; the maps are nullptr when only the
@@ -67,6 +106,8 @@ class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
   std::vector<int> pose_blocks_;
   int extra_tangent_;
   bool extra_is_pose_;
+  std::shared_ptr<PoseTransformMemo> memo_;
+  std::vector<std::int64_t> memo_tags_;
 };
 
 class RigCorrectedFactor final : public PoseWrappedFactor {
