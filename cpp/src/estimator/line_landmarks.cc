@@ -242,6 +242,15 @@ double LineLandmarks::meanErrorPx(const Window& window, const LineLandmark& lm) 
   return n == 0 ? 0.0 : sum / n;
 }
 
+LineLandmarks::BadPart LineLandmarks::badPart(const Vec6& L, const Pose& T_W_B, const LineFrameObs& o) const {
+  if (lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_) > options_.max_observation_px)
+    return BadPart::kCam0;
+  if (o.has_right &&
+      lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_) > options_.max_observation_px)
+    return BadPart::kCam1;
+  return BadPart::kNone;
+}
+
 int LineLandmarks::dropBadSightings(const Window& window, LineLandmark& lm) const {
   // One bad frame of a good track (a segment matched to a neighbouring parallel edge, a stereo mismatch) would keep
   // pulling its frame's pose through the robust loss' linear tail; the line keeps its other sightings.
@@ -249,22 +258,13 @@ int LineLandmarks::dropBadSightings(const Window& window, LineLandmark& lm) cons
   int dropped = 0;
   for (auto it = lm.obs.begin(); it != lm.obs.end();) {
     const WindowFrame* f = window.find(it->first);
-    LineFrameObs& o = it->second;
-    if (f == nullptr) {
-      ++it;
-      continue;
-    }
-    const Pose T_W_B = f->T_W_B();
-    if (lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_) > options_.max_observation_px) {
+    const BadPart bad = f == nullptr ? BadPart::kNone : badPart(L, f->T_W_B(), it->second);
+    if (bad != BadPart::kNone) ++dropped;
+    if (bad == BadPart::kCam0) {
       it = lm.obs.erase(it);
-      ++dropped;
       continue;
     }
-    if (o.has_right &&
-        lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_) > options_.max_observation_px) {
-      o.has_right = false;
-      ++dropped;
-    }
+    if (bad == BadPart::kCam1) it->second.has_right = false;
     ++it;
   }
   return dropped;
@@ -281,16 +281,12 @@ int LineLandmarks::gateNewest(const Window& window) {
     if (!lm.solved || !lm.triangulated) continue;
     const auto it = lm.obs.find(newest.id);
     if (it == lm.obs.end()) continue;
-    const Vec6 L = lm.L();
-    LineFrameObs& o = it->second;
-    if (lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_) > options_.max_observation_px) {
+    const BadPart bad = badPart(lm.L(), T_W_B, it->second);
+    if (bad != BadPart::kNone) ++dropped;
+    if (bad == BadPart::kCam0)
       lm.obs.erase(it);
-      ++dropped;
-    } else if (o.has_right && lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_) >
-                                  options_.max_observation_px) {
-      o.has_right = false;
-      ++dropped;
-    }
+    else if (bad == BadPart::kCam1)
+      it->second.has_right = false;
   }
   return dropped;
 }

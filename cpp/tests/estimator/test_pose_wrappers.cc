@@ -65,6 +65,33 @@ PointCase pointCase(std::mt19937& rng, const Pose& T_B_Ct) {
   }
 }
 
+/// `wrapped` at `pw` and `direct` at `pd` give the same 2-D residual.
+void expectSameResidual(const ceres::CostFunction& wrapped, const double* const* pw, const ceres::CostFunction& direct,
+                        const double* const* pd) {
+  double rw[2], rd[2];
+  ASSERT_TRUE(wrapped.Evaluate(pw, rw, nullptr));
+  ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
+  EXPECT_NEAR(rw[0], rd[0], 1e-9);
+  EXPECT_NEAR(rw[1], rd[1], 1e-9);
+}
+
+struct LineCase {
+  Vec6 L;     // the line in W
+  Vec2 s, e;  // its endpoints seen by the camera, about a pixel off
+};
+
+/// A line about 4 m ahead of the camera at T_W_C, and its observed segment in that camera.
+LineCase lineCase(std::mt19937& rng, const Pose& T_W_C) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  const Vec3 a_C(-0.8 + 0.2 * n(rng), 0.3 * n(rng), 4.0 + 0.5 * n(rng));
+  const Vec3 b_C(0.7 + 0.2 * n(rng), 0.3 * n(rng), 3.5 + 0.5 * n(rng));
+  LineCase c;
+  c.L = normalisePlucker(pluckerFromPoints(T_W_C * a_C, T_W_C * b_C));
+  c.s = a_C.head<2>() / a_C.z() + Vec2(n(rng), n(rng)) / kFocal;
+  c.e = b_C.head<2>() / b_C.z() + Vec2(n(rng), n(rng)) / kFocal;
+  return c;
+}
+
 TEST(RigFactor, PointResidualEqualsTheInnerFactorWithCorrectedExtrinsics) {
   std::mt19937 rng(11);
   for (int trial = 0; trial < 20; ++trial) {
@@ -79,11 +106,7 @@ TEST(RigFactor, PointResidualEqualsTheInnerFactorWithCorrectedExtrinsics) {
     double rho = c.rho;
     const double* pw[4] = {bi.data(), bj.data(), &rho, br.data()};
     const double* pd[3] = {bi.data(), bj.data(), &rho};
-    double rw[2], rd[2];
-    ASSERT_TRUE(wrapped.Evaluate(pw, rw, nullptr));
-    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
-    EXPECT_NEAR(rw[0], rd[0], 1e-9);
-    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    expectSameResidual(wrapped, pw, direct, pd);
     EXPECT_EQ(wrapped.parameter_block_sizes(), (std::vector<int32_t>{7, 7, 1, 7}));
   }
 }
@@ -106,7 +129,6 @@ TEST(RigFactor, PointJacobiansSameCameraAndLeftToRight) {
 
 TEST(RigFactor, LineJacobiansAndResidual) {
   std::mt19937 rng(13);
-  std::normal_distribution<double> n(0.0, 1.0);
   const PoseManifold pm;
   const LineManifold lm;
   for (int trial = 0; trial < 60; ++trial) {
@@ -114,22 +136,15 @@ TEST(RigFactor, LineJacobiansAndResidual) {
     const Pose T_B_R0 = randomPose(rng, 0.01, 0.01), T_B_R = randomPose(rng, 0.01, 0.01);
     const Pose T_B_C = trial % 2 == 0 ? cam0() : cam1();
     const Pose T_W_C = T_W_B * T_B_R * T_B_C;
-    const Vec3 a_C(-0.8 + 0.2 * n(rng), 0.3 * n(rng), 4.0 + 0.5 * n(rng));
-    const Vec3 b_C(0.7 + 0.2 * n(rng), 0.3 * n(rng), 3.5 + 0.5 * n(rng));
-    Vec6 L = normalisePlucker(pluckerFromPoints(T_W_C * a_C, T_W_C * b_C));
-    const Vec2 s = a_C.head<2>() / a_C.z() + Vec2(n(rng), n(rng)) / kFocal;
-    const Vec2 e = b_C.head<2>() / b_C.z() + Vec2(n(rng), n(rng)) / kFocal;
-    auto inner = std::make_shared<LineReprojectionFactor>(s, e, T_B_R0 * T_B_C, kFocal);
-    const LineReprojectionFactor direct(s, e, T_B_R * T_B_C, kFocal);
+    LineCase c = lineCase(rng, T_W_C);
+    Vec6& L = c.L;
+    auto inner = std::make_shared<LineReprojectionFactor>(c.s, c.e, T_B_R0 * T_B_C, kFocal);
+    const LineReprojectionFactor direct(c.s, c.e, T_B_R * T_B_C, kFocal);
     const RigCorrectedFactor f(inner, {0}, T_B_R0);
     auto bp = block(T_W_B), br = block(T_B_R);
     const double* pw[3] = {bp.data(), L.data(), br.data()};
     const double* pd[2] = {bp.data(), L.data()};
-    double rw[2], rd[2];
-    ASSERT_TRUE(f.Evaluate(pw, rw, nullptr));
-    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
-    EXPECT_NEAR(rw[0], rd[0], 1e-9);
-    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    expectSameResidual(f, pw, direct, pd);
     ASSERT_TRUE(testing::jacobiansMatch(f, {bp.data(), L.data(), br.data()}, {&pm, &lm, &pm}, kTol))
         << "trial " << trial;
   }
@@ -187,11 +202,7 @@ TEST(TimeShiftedFactor, ResidualIsTheInnerFactorAtTheShiftedPoses) {
     double rho = c.rho;
     const double* pw[4] = {bi.data(), bj.data(), &rho, &td};
     const double* pd[3] = {si.data(), sj.data(), &rho};
-    double rw[2], rd[2];
-    ASSERT_TRUE(f.Evaluate(pw, rw, nullptr));
-    ASSERT_TRUE(inner->Evaluate(pd, rd, nullptr));
-    EXPECT_NEAR(rw[0], rd[0], 1e-9);
-    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    expectSameResidual(f, pw, *inner, pd);
     EXPECT_EQ(f.parameter_block_sizes(), (std::vector<int32_t>{7, 7, 1, 1}));
   }
 }
@@ -295,11 +306,7 @@ TEST(StereoCorrection, Cam1PointResidualIsTheInnerFactorWithCam1Corrected) {
     double rho = c.rho;
     const double* pw[4] = {bi.data(), bj.data(), &rho, bs.data()};
     const double* pd[3] = {bi.data(), bj.data(), &rho};
-    double rw[2], rd[2];
-    ASSERT_TRUE(wrapped->Evaluate(pw, rw, nullptr));
-    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
-    EXPECT_NEAR(rw[0], rd[0], 1e-9);
-    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    expectSameResidual(*wrapped, pw, direct, pd);
     ASSERT_TRUE(testing::jacobiansMatch(*wrapped, {bi.data(), bj.data(), &rho, bs.data()}, {&pm, &pm, nullptr, &pm},
                                         kTol))
         << "trial " << trial;
@@ -315,38 +322,27 @@ TEST(StereoCorrection, Cam1PointResidualIsTheInnerFactorWithCam1Corrected) {
     // The rig and S together give the camera T_W_Bj * T_B_R * T_B_C1 * S.
     const PointReprojectionFactor both(c.uv_host, c.uv_target, c.T_B_R * cam0(), c.T_B_R * cam1() * S, s);
     const double* pr[5] = {bi.data(), bj.data(), &rho, bs.data(), br.data()};
-    ASSERT_TRUE(rig->Evaluate(pr, rw, nullptr));
-    ASSERT_TRUE(both.Evaluate(pd, rd, nullptr));
-    EXPECT_NEAR(rw[0], rd[0], 1e-9);
-    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    expectSameResidual(*rig, pr, both, pd);
   }
 }
 
 TEST(StereoCorrection, Cam1LineResidualAndJacobians) {
   std::mt19937 rng(18);
-  std::normal_distribution<double> n(0.0, 1.0);
   const PoseManifold pm;
   const LineManifold lm;
   for (int trial = 0; trial < 40; ++trial) {
     const Pose T_W_B = randomPose(rng, 1.0, 3.0);
     const Pose S0 = randomPose(rng, 0.005, 0.001), S = randomPose(rng, 0.005, 0.001);
     const Pose T_W_C = T_W_B * cam1() * S;
-    const Vec3 a_C(-0.8 + 0.2 * n(rng), 0.3 * n(rng), 4.0 + 0.5 * n(rng));
-    const Vec3 b_C(0.7 + 0.2 * n(rng), 0.3 * n(rng), 3.5 + 0.5 * n(rng));
-    Vec6 L = normalisePlucker(pluckerFromPoints(T_W_C * a_C, T_W_C * b_C));
-    const Vec2 s = a_C.head<2>() / a_C.z() + Vec2(n(rng), n(rng)) / kFocal;
-    const Vec2 e = b_C.head<2>() / b_C.z() + Vec2(n(rng), n(rng)) / kFocal;
-    auto inner = std::make_shared<LineReprojectionFactor>(s, e, cam1() * S0, kFocal);
-    const LineReprojectionFactor direct(s, e, cam1() * S, kFocal);
+    LineCase c = lineCase(rng, T_W_C);
+    Vec6& L = c.L;
+    auto inner = std::make_shared<LineReprojectionFactor>(c.s, c.e, cam1() * S0, kFocal);
+    const LineReprojectionFactor direct(c.s, c.e, cam1() * S, kFocal);
     const auto f = RigCorrectedFactor::stereoCorrected(inner, 0, cam1() * S0, S0);
     auto bp = block(T_W_B), bs = block(S);
     const double* pw[3] = {bp.data(), L.data(), bs.data()};
     const double* pd[2] = {bp.data(), L.data()};
-    double rw[2], rd[2];
-    ASSERT_TRUE(f->Evaluate(pw, rw, nullptr));
-    ASSERT_TRUE(direct.Evaluate(pd, rd, nullptr));
-    EXPECT_NEAR(rw[0], rd[0], 1e-9);
-    EXPECT_NEAR(rw[1], rd[1], 1e-9);
+    expectSameResidual(*f, pw, direct, pd);
     ASSERT_TRUE(testing::jacobiansMatch(*f, {bp.data(), L.data(), bs.data()}, {&pm, &lm, &pm}, kTol))
         << "trial " << trial;
   }

@@ -113,6 +113,10 @@ class LineLandmarks {
   }
 
  private:
+  /// The part of sighting `o` (at body pose T_W_B) farther than options.max_observation_px from L's projection: cam0
+  /// (the whole sighting goes), only cam1, or none.
+  enum class BadPart { kNone, kCam0, kCam1 };
+  BadPart badPart(const Vec6& L, const Pose& T_W_B, const LineFrameObs& o) const;
   /// Drops the sightings of `lm` (a frame's cam0 segment with its cam1 one, or only cam1) farther than
   /// options.max_observation_px from its projection; returns how many.
   int dropBadSightings(const Window& window, LineLandmark& lm) const;

@@ -41,7 +41,6 @@
 
 namespace linnet {
 
-
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using ExtraMap = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;  // extra tangent -> transformed pose tangent
 
