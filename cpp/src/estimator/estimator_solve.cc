@@ -177,6 +177,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
   so.max_iterations = max_iterations;
   so.max_time_s = options_.solver.max_solver_time_s;
   so.function_tolerance = options_.solver.function_tolerance;
+  so.landmark_iterations = options_.solver.line_iterations;
   {
     ScopedMs timer(&solver_ms_);
     solver.solve(so);

@@ -56,6 +56,22 @@ bool addJtJFixed(int rows, int ta, int tb, double* dst, Eigen::Index ld, const d
   return true;
 }
 
+// One residual (and the Jacobians `jac` asks for; tangent ones for poses when the factor gives them) and its loss:
+// rho as ceres::LossFunction::Evaluate gives it (rho = {s, 1, 0} without a loss). False if the evaluation fails or a
+// residual is not finite.
+bool evaluateResidual(const ceres::CostFunction* cost, const TangentJacobians* tangent, const ceres::LossFunction* loss,
+                      int rows, const double* const* params, double* r, double** jac, double rho[3]) {
+  const bool ok = tangent != nullptr ? tangent->evaluateTangentSpace(params, r, jac) : cost->Evaluate(params, r, jac);
+  const Eigen::Map<const Eigen::VectorXd> res(r, rows);
+  if (!ok || !res.allFinite()) return false;
+  const double s = res.squaredNorm();
+  rho[0] = s;
+  rho[1] = 1.0;
+  rho[2] = 0.0;
+  if (loss != nullptr) loss->Evaluate(s, rho);
+  return true;
+}
+
 }  // namespace
 
 void SchurLmSolver::addParameterBlock(double* data, int ambient_size, const ceres::Manifold* manifold,
@@ -137,15 +153,33 @@ void SchurLmSolver::prepare() {
     for (int k = 0; k < r.count; ++k) {
       const Block& b = blocks_[static_cast<std::size_t>(res_blocks_[static_cast<std::size_t>(r.first + k)])];
       arena += static_cast<std::size_t>(r.rows) * static_cast<std::size_t>(b.ambient + b.tangent);
-      if (b.eliminate) r.landmark = b.offset;
+      if (b.eliminate) {
+        r.landmark = b.offset;
+        r.landmark_pos = k;
+      }
     }
-    if (r.landmark >= 0) landmarks_[static_cast<std::size_t>(r.landmark)].kept_count += r.count - 1;
+    if (r.landmark >= 0) {
+      Landmark& lm = landmarks_[static_cast<std::size_t>(r.landmark)];
+      lm.kept_count += r.count - 1;
+      ++lm.res_count;
+    }
   }
-  int kept_total = 0;
+  // The flat lists' offsets (kept blocks and residuals of each landmark); the counts are refilled below.
+  int kept_total = 0, res_total = 0;
   for (Landmark& lm : landmarks_) {
     lm.kept_first = kept_total;
     kept_total += lm.kept_count;
     lm.kept_count = 0;
+    lm.res_first = res_total;
+    res_total += lm.res_count;
+    lm.res_count = 0;
+  }
+  // Each landmark's residuals, in residual order.
+  lm_residuals_.assign(static_cast<std::size_t>(res_total), -1);
+  for (std::size_t i = 0; i < residuals_.size(); ++i) {
+    if (residuals_[i].landmark < 0) continue;
+    Landmark& lm = landmarks_[static_cast<std::size_t>(residuals_[i].landmark)];
+    lm_residuals_[static_cast<std::size_t>(lm.res_first + lm.res_count++)] = static_cast<int>(i);
   }
   kept_.assign(static_cast<std::size_t>(kept_total), -1);
   res_slots_.assign(res_blocks_.size(), -1);
@@ -225,14 +259,11 @@ double SchurLmSolver::evaluate(bool linearise) {
       J_ptrs[k] = p + (res.tangent != nullptr && b.pose ? static_cast<std::ptrdiff_t>(rows) * b.ambient : 0);
       p += static_cast<std::ptrdiff_t>(rows) * (b.ambient + b.tangent);
     }
-    const double* const* params = param_ptrs_.data();
-    double** jac = linearise ? J_ptrs : nullptr;
-    const bool ok = res.tangent != nullptr ? res.tangent->evaluateTangentSpace(params, scratch, jac)
-                                           : res.cost->Evaluate(params, scratch, jac);
-    if (!ok || !r.allFinite()) return std::numeric_limits<double>::infinity();
+    double rho[3];
+    if (!evaluateResidual(res.cost, res.tangent, res.loss, rows, param_ptrs_.data(), scratch,
+                          linearise ? J_ptrs : nullptr, rho))
+      return std::numeric_limits<double>::infinity();
     const double s = r.squaredNorm();
-    double rho[3] = {s, 1.0, 0.0};
-    if (res.loss != nullptr) res.loss->Evaluate(s, rho);
     total += 0.5 * rho[0];
     if (!linearise) continue;
 
@@ -462,6 +493,85 @@ void SchurLmSolver::applyStep(const Eigen::VectorXd& dx_kept, const Eigen::Vecto
   }
 }
 
+double SchurLmSolver::landmarkCost(const Landmark& lm, Eigen::MatrixXd* H, Eigen::VectorXd* g) {
+  const Block& b = blocks_[static_cast<std::size_t>(lm.block)];
+  const bool linearise = H != nullptr && g != nullptr;
+  if (linearise) {
+    H->setZero(lm.size, lm.size);
+    g->setZero(lm.size);
+    plus_jacobians_[static_cast<std::size_t>(lm.block)].resize(b.ambient, b.tangent);
+    if (b.manifold != nullptr) b.manifold->PlusJacobian(b.data, plus_jacobians_[static_cast<std::size_t>(lm.block)].data());
+  }
+  double total = 0.0;
+  for (int q = 0; q < lm.res_count; ++q) {
+    const Residual& res = residuals_[static_cast<std::size_t>(lm_residuals_[static_cast<std::size_t>(lm.res_first + q)])];
+    const std::size_t nb = static_cast<std::size_t>(res.count);
+    lm_scratch_.resize(static_cast<std::size_t>(res.rows) * static_cast<std::size_t>(1 + b.ambient));
+    param_ptrs_.resize(nb);
+    jacobian_ptrs_.assign(nb, nullptr);
+    for (std::size_t k = 0; k < nb; ++k)
+      param_ptrs_[k] = blocks_[static_cast<std::size_t>(res_blocks_[static_cast<std::size_t>(res.first) + k])].data;
+    double* r_data = lm_scratch_.data();
+    double* J_data = r_data + res.rows;
+    if (linearise) jacobian_ptrs_[static_cast<std::size_t>(res.landmark_pos)] = J_data;
+    double rho[3];
+    if (!evaluateResidual(res.cost, res.tangent, res.loss, res.rows, param_ptrs_.data(), r_data,
+                          linearise ? jacobian_ptrs_.data() : nullptr, rho))
+      return std::numeric_limits<double>::infinity();
+    total += 0.5 * rho[0];
+    const Eigen::Map<const Eigen::VectorXd> r(r_data, res.rows);
+    if (!linearise) continue;
+    // Iteratively reweighted: the robust loss as the weight rho' of the squared residual.
+    const Eigen::Map<const RowMajor> Ja(J_data, res.rows, b.ambient);
+    const RowMajor Jt = b.manifold != nullptr ? RowMajor(Ja * plus_jacobians_[static_cast<std::size_t>(lm.block)]) : RowMajor(Ja);
+    H->noalias() += rho[1] * Jt.transpose() * Jt;
+    g->noalias() += rho[1] * Jt.transpose() * r;
+  }
+  return total;
+}
+
+// A landmark's own iterations stop once a step lowers its cost by less than this share (it then sits within a
+// fraction of a pixel of its optimum given the poses).
+constexpr double kLandmarkTolerance = 1e-3;
+
+void SchurLmSolver::refineLandmarks() {
+  if (options_.landmark_iterations <= 0) return;
+  for (const Landmark& lm : landmarks_) {
+    if (lm.size < 2 || lm.res_count == 0) continue;
+    const Block& b = blocks_[static_cast<std::size_t>(lm.block)];
+    double cost = landmarkCost(lm, &lm_H_, &lm_g_);
+    if (!std::isfinite(cost)) continue;
+    double lambda = 1e-3;  // Levenberg-Marquardt on the landmark alone: damping relative to diag(H)
+    for (int it = 0; it < options_.landmark_iterations; ++it) {
+      Eigen::MatrixXd A = lm_H_;
+      A.diagonal() += lambda * lm_H_.diagonal().cwiseMax(options_.min_diagonal);
+      const Eigen::LLT<Eigen::MatrixXd> llt(A);
+      if (llt.info() != Eigen::Success) break;
+      const Eigen::VectorXd delta = llt.solve(-lm_g_);
+      if (!delta.allFinite()) break;
+      lm_saved_.assign(b.data, b.data + b.ambient);
+      plus_out_.resize(static_cast<std::size_t>(b.ambient));
+      if (b.manifold != nullptr) {
+        b.manifold->Plus(b.data, delta.data(), plus_out_.data());
+      } else {
+        for (int k = 0; k < b.ambient; ++k) plus_out_[static_cast<std::size_t>(k)] = b.data[k] + delta(k);
+      }
+      std::copy(plus_out_.begin(), plus_out_.end(), b.data);
+      const double new_cost = landmarkCost(lm, nullptr, nullptr);
+      if (!(new_cost < cost)) {
+        std::copy(lm_saved_.begin(), lm_saved_.end(), b.data);
+        lambda *= 10.0;
+        continue;
+      }
+      const double relative = (cost - new_cost) / std::max(cost, std::numeric_limits<double>::min());
+      lambda = std::max(1e-6, lambda / 10.0);
+      if (relative < kLandmarkTolerance || it + 1 == options_.landmark_iterations) break;
+      cost = landmarkCost(lm, &lm_H_, &lm_g_);
+      if (!std::isfinite(cost)) break;
+    }
+  }
+}
+
 void SchurLmSolver::saveValues() {
   saved_.clear();
   for (const Block& b : blocks_) saved_.insert(saved_.end(), b.data, b.data + b.ambient);
@@ -486,6 +596,7 @@ SchurLmSummary SchurLmSolver::solve(const SchurLmOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   prepare();
   SchurLmSummary sum;
+  refineLandmarks();
   double cost = evaluate(true);
   sum.jacobian_evaluations = 1;
   sum.initial_cost = sum.final_cost = cost;
@@ -516,7 +627,8 @@ SchurLmSummary SchurLmSolver::solve(const SchurLmOptions& options) {
         break;
       }
       if (it + 1 < options_.max_iterations) {
-        evaluate(true);
+        refineLandmarks();
+        cost = evaluate(true);
         ++sum.jacobian_evaluations;
       }
     } else {

@@ -42,6 +42,12 @@ struct SchurLmOptions {
                                           // the V1_02 room replay, APE 1.21 m). A trade-off: 10 gave V1_02 room / lowtex
                                           // 0.0108 / 0.032 m (1e3: 0.0121 / 0.034) but MH_01 hall 0.022 m (1e3: 0.0148,
                                           // points only 0.0173). Not applied when the same blocks are not eliminated
+  int landmark_iterations = 0;            // Gauss-Newton iterations of each multi-dimensional eliminated block alone
+                                          // (lines; the kept blocks held) before the first joint step and after every
+                                          // accepted one ("embedded point iterations", Jeong et al., CVPR 2010). The
+                                          // joint step moves a line only partly (landmark_damping); these let the
+                                          // lines catch up with the poses, so that the next joint step is taken from
+                                          // converged lines. 0: none
   double min_diagonal = 1e-6;             // clamp of diag(J^T J) in the damping
   double max_diagonal = 1e32;
 };
@@ -93,6 +99,7 @@ class SchurLmSolver {
     int count;
     int rows;
     int landmark = -1;        // index into landmarks_ of its eliminated block, -1 if none
+    int landmark_pos = -1;    // position of that block among the residual's blocks
     std::size_t arena = 0;    // offset of its scratch in arena_: r (rows), then per block J ambient and J tangent
   };
   // One eliminated block's normal-equation pieces. Its kept blocks and matrices live in flat arrays (kept_,
@@ -105,6 +112,8 @@ class SchurLmSolver {
     int kept_count = 0;
     std::size_t hee = 0;    // H_ee (e x e, column-major) at lm_data_[hee]
     std::size_t inv = 0;    // the damped H_ee^-1 of a multi-dimensional landmark at inv_data_[inv]
+    int res_first = 0;      // its residuals: lm_residuals_[res_first, + res_count) (indices into residuals_)
+    int res_count = 0;
   };
   using MatMap = Eigen::Map<Eigen::MatrixXd, Eigen::Aligned16>;
   MatMap Hee(const Landmark& lm) { return MatMap(lm_data_.data() + lm.hee, lm.size, lm.size); }
@@ -121,6 +130,11 @@ class SchurLmSolver {
   /// Solves the damped system for the step; false if the reduced system is not positive definite.
   bool computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::VectorXd* dx_elim, double* model_decrease);
   void applyStep(const Eigen::VectorXd& dx_kept, const Eigen::VectorXd& dx_elim);
+  /// options_.landmark_iterations damped Gauss-Newton steps of every multi-dimensional landmark alone, each kept only
+  /// if it lowers that landmark's robust cost.
+  void refineLandmarks();
+  /// Robust cost of one landmark's residuals; with `H`, `g` (tangent size) also their IRLS normal equations.
+  double landmarkCost(const Landmark& lm, Eigen::MatrixXd* H, Eigen::VectorXd* g);
   void saveValues();
   void restoreValues();
 
@@ -130,6 +144,7 @@ class SchurLmSolver {
   std::vector<int> res_blocks_;  // the residuals' blocks, flat
   std::vector<int> res_slots_;   // parallel: the block's index in its residual's landmark's kept list (-1: none)
   std::vector<Landmark> landmarks_;
+  std::vector<int> lm_residuals_;         // the landmarks' residuals, flat (Landmark::res_first / res_count)
   std::vector<int> kept_;                 // the landmarks' kept blocks, flat (with slack)
   std::vector<std::size_t> hek_offset_;   // parallel to kept_: offset of that H_ek in lm_data_
   Eigen::VectorXd lm_data_;               // every landmark's H_ee and H_ek, 16-byte aligned pieces
@@ -151,6 +166,9 @@ class SchurLmSolver {
   Eigen::LLT<Eigen::MatrixXd> llt_;
   SchurLmOptions options_;
   std::vector<double> saved_, plus_out_;
+  std::vector<double> lm_scratch_, lm_saved_;  // refineLandmarks: one residual and its landmark Jacobian; a block
+  Eigen::MatrixXd lm_H_;                  // refineLandmarks: one landmark's normal equations
+  Eigen::VectorXd lm_g_;
 };
 
 }  // namespace linnet
