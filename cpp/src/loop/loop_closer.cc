@@ -5,6 +5,8 @@
 #include <limits>
 #include <utility>
 
+#include <Eigen/Eigenvalues>
+
 namespace linnet {
 
 namespace {
@@ -129,7 +131,17 @@ bool LoopCloser::tryLoop(std::size_t k) {
     if ((T_Bj_Bk.p - predicted.p).norm() > radius ||
         std::abs(dyaw) > options_.max_yaw_change_deg * kDegToRad)
       continue;
-    graph_.addEdge(graph_.loopEdge(j, k, T_Bj_Bk, options_.loop_sigma_m, options_.loop_sigma_yaw_deg * kDegToRad));
+    double sigma_t = options_.loop_sigma_m, sigma_yaw = options_.loop_sigma_yaw_deg * kDegToRad;
+    if (options_.loop_pnp_sigma_scale > 0.0) {
+      // The PnP's covariance in the body frame (the extrinsic's lever arm left out); its largest standard deviations.
+      const Mat3 R_BC = T_B_C0_.R();
+      const Eigen::SelfAdjointEigenSolver<Mat3> pos(R_BC * m.covariance.block<3, 3>(3, 3) * R_BC.transpose(),
+                                                    Eigen::EigenvaluesOnly);
+      const Eigen::SelfAdjointEigenSolver<Mat3> rot(m.covariance.block<3, 3>(0, 0), Eigen::EigenvaluesOnly);
+      sigma_t = std::max(sigma_t, options_.loop_pnp_sigma_scale * std::sqrt(std::max(0.0, pos.eigenvalues()(2))));
+      sigma_yaw = std::max(sigma_yaw, options_.loop_pnp_sigma_scale * std::sqrt(std::max(0.0, rot.eigenvalues()(2))));
+    }
+    graph_.addEdge(graph_.loopEdge(j, k, T_Bj_Bk, sigma_t, sigma_yaw));
     PoseGraphOptions po;
     po.loop_huber = options_.loop_huber;
     po.max_iterations = options_.max_iterations;

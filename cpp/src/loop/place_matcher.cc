@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Cholesky>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 
@@ -90,6 +91,36 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
 
 namespace {
 
+// Covariance of the pose (R, t) mapping `object` onto the normalised `image` points (x_b = R x_a + t), for the
+// perturbation R <- exp(dtheta) R, t <- t + dt: sigma^2 (J^T J)^-1 with sigma^2 the residuals' variance (2 n - 6
+// degrees of freedom). False when the system is singular or there are too few points.
+bool pnpCovariance(const std::vector<cv::Point3d>& object, const std::vector<cv::Point2d>& image, const Mat3& R,
+                   const Vec3& t, Eigen::Matrix<double, 6, 6>* covariance, double* rms) {
+  const int n = static_cast<int>(object.size());
+  if (n < 4) return false;
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  double sum_sq = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 RX = R * Vec3(object[i].x, object[i].y, object[i].z);
+    const Vec3 p = RX + t;
+    if (!(p.z() > 1e-9)) return false;
+    const Vec2 r = p.head<2>() / p.z() - Vec2(image[i].x, image[i].y);
+    sum_sq += r.squaredNorm();
+    Eigen::Matrix<double, 2, 3> du_dp;
+    du_dp << 1.0 / p.z(), 0.0, -p.x() / (p.z() * p.z()), 0.0, 1.0 / p.z(), -p.y() / (p.z() * p.z());
+    Eigen::Matrix<double, 3, 6> dp;
+    dp << -skew(RX), Mat3::Identity();  // d p / d(dtheta, dt)
+    const Eigen::Matrix<double, 2, 6> J = du_dp * dp;
+    H.noalias() += J.transpose() * J;
+  }
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
+  const double variance = sum_sq / std::max(1, 2 * n - 6);
+  *covariance = variance * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+  *rms = std::sqrt(sum_sq / n);
+  return covariance->allFinite();
+}
+
 // 3D points of `a` (its camera frame) matched to 2D corners of `b`; on success T_Cb_Ca.
 PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options) {
   PlaceMatch out;
@@ -133,6 +164,8 @@ PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const Pla
     for (int c = 0; c < 3; ++c) R(r, c) = Rcv.at<double>(r, c);
   const Vec3 t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
   if (!R.allFinite() || !t.allFinite()) return out;
+  if (!pnpCovariance(obj_in, img_in, R, t, &out.covariance, &out.rms_px)) return out;
+  out.rms_px *= options.focal_px;
   out.T_Cold_Cnew = Pose(R, t);  // x_b = R x_a + t: T_Cb_Ca
   out.ok = true;
   return out;
@@ -149,6 +182,13 @@ PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf,
     r.inliers = std::max(r.inliers, m.inliers);
     return r;
   }
+  // The inverse: R' = R^T, t' = -R^T t, so dtheta' = -R^T dtheta and dt' = -R^T [t]x dtheta - R^T dt.
+  const Mat3 Rt = r.T_Cold_Cnew.R().transpose();
+  Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
+  J.block<3, 3>(0, 0) = -Rt;
+  J.block<3, 3>(3, 0) = -Rt * skew(r.T_Cold_Cnew.p);
+  J.block<3, 3>(3, 3) = -Rt;
+  r.covariance = J * r.covariance * J.transpose();
   r.T_Cold_Cnew = r.T_Cold_Cnew.inverse();
   return r;
 }

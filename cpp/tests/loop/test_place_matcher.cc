@@ -69,6 +69,57 @@ TEST(PlaceMatcher, SolvesTheOtherWayWhenOnlyTheOldKeyframeHasDepth) {
   EXPECT_LT((m.T_Cold_Cnew.p - T_Cold_Cnew.p).norm(), 1e-6);
 }
 
+// Monte Carlo over corner noise: the spread of the solved pose (perturbation R = exp(dtheta) R_true, t = t_true + dt)
+// must match the covariance matchPlaces reports, solved from the new keyframe's points (`new_has_depth`) or, the
+// other way round, from the old one's and inverted.
+void checkCovariance(bool new_has_depth) {
+  // A large rotation and baseline, so that inverting the pose mixes its covariance's axes.
+  const Pose T_Cold_Cnew(expSO3(Vec3(0.1, -0.5, 0.1)), Vec3(0.9, -0.1, 0.6));
+  PlaceFeatures old_kf, new_kf;
+  if (new_has_depth) {
+    syntheticPair(T_Cold_Cnew, 40, 0, &old_kf, &new_kf);
+  } else {
+    syntheticPair(T_Cold_Cnew.inverse(), 40, 0, &new_kf, &old_kf);
+  }
+  PlaceFeatures& corners = new_has_depth ? old_kf : new_kf;
+  const std::vector<Vec2> clean = corners.uv;
+  PlaceMatchOptions o;
+  o.min_inliers = 20;
+  o.ransac_px = 5.0;
+  const double sigma = 1.0 / o.focal_px;  // 1 px
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, sigma);
+  const int trials = 400;
+  Eigen::Matrix<double, 6, 6> predicted = Eigen::Matrix<double, 6, 6>::Zero();
+  std::vector<Eigen::Matrix<double, 6, 1>> errors;
+  for (int k = 0; k < trials; ++k) {
+    for (int i = 0; i < 40; ++i) corners.uv[static_cast<std::size_t>(i)] = clean[static_cast<std::size_t>(i)] + Vec2(noise(rng), noise(rng));
+    const PlaceMatch m = matchPlaces(old_kf, new_kf, o);
+    ASSERT_TRUE(m.ok);
+    ASSERT_GE(m.inliers, 36);
+    Eigen::Matrix<double, 6, 1> e;
+    e << logSO3(m.T_Cold_Cnew.q * T_Cold_Cnew.q.conjugate()), m.T_Cold_Cnew.p - T_Cold_Cnew.p;
+    errors.push_back(e);
+    predicted += m.covariance / trials;
+  }
+  // Mahalanobis: E[e^T C^-1 e] = 6 for a right covariance (a 20 % band holds for 400 trials).
+  const Eigen::Matrix<double, 6, 6> info = predicted.inverse();
+  double mahalanobis = 0.0;
+  for (const auto& e : errors) mahalanobis += e.dot(info * e) / trials;
+  EXPECT_NEAR(mahalanobis, 6.0, 1.2) << (new_has_depth ? "new" : "old") << " keyframe with depth";
+  // And per axis: the predicted standard deviations against the empirical ones.
+  for (int a = 0; a < 6; ++a) {
+    double var = 0.0;
+    for (const auto& e : errors) var += e(a) * e(a) / trials;
+    EXPECT_NEAR(std::sqrt(var / predicted(a, a)), 1.0, 0.15) << "axis " << a;
+  }
+}
+
+TEST(PlaceMatcher, CovarianceMatchesTheSpreadOfTheSolvedPose) {
+  checkCovariance(true);
+  checkCovariance(false);
+}
+
 TEST(PlaceMatcher, RejectsTooFewMatches) {
   PlaceFeatures old_kf, new_kf;
   syntheticPair(Pose::identity(), 20, 0, &old_kf, &new_kf);

@@ -53,6 +53,10 @@ struct PlaceMatch {
   int matches = 0;           // descriptor matches that passed the ratio test
   int inliers = 0;           // PnP RANSAC inliers
   Pose T_Cold_Cnew;          // the new keyframe's cam0 in the old one's cam0
+  // Covariance of T_Cold_Cnew for the perturbation R <- exp(dtheta) R, t <- t + dt (order dtheta, dt; rad, m): the
+  // PnP's Gauss-Newton inverse scaled by its inliers' residual variance (which holds the old landmarks' errors too).
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double rms_px = 0.0;       // RMS reprojection error of the inliers at the solution, pixels
 };
 
 /// Rebuilds p_C / descriptors_3d of the tracked corners: p_W_tracked[i] (the odometry's landmark position of
