@@ -554,6 +554,100 @@ def gyro_rotation(t_ns: np.ndarray, gyr: np.ndarray, t0: int, t1: int, R_B_C: np
     return R_B_C.T @ R_B0_B1.T @ R_B_C
 
 
+def _sighting_plane(T_W_C: np.ndarray, s: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The plane (4,) through the camera centre and a segment (normalised endpoints s, e), in W: n . X + d = 0."""
+    n_c = np.cross(np.r_[s, 1.0], np.r_[e, 1.0])
+    n_c /= np.linalg.norm(n_c)
+    n_w = T_W_C[:3, :3] @ n_c
+    return np.r_[n_w, -n_w @ T_W_C[:3, 3]]
+
+
+def _line_from_planes(P: np.ndarray) -> Optional[tuple]:
+    """The 3D line (point, unit direction) closest to lying in every plane of P (K, 4): the two homogeneous points
+    spanning A's least-squares null space."""
+    _, _, Vt = np.linalg.svd(P)
+    X1, X2 = Vt[-1], Vt[-2]
+    d = X1[3] * X2[:3] - X2[3] * X1[:3]
+    m = np.cross(X1[:3], X2[:3])
+    if not np.linalg.norm(d) > 1e-12:
+        return None
+    return np.cross(d, m) / (d @ d), d / np.linalg.norm(d)
+
+
+def _sighting_distances(line: tuple, poses: np.ndarray, s: np.ndarray, e: np.ndarray, focal_px: float) -> np.ndarray:
+    """Largest endpoint distance (pixels, focal_px per normalised unit) of each sighting to the line's projection."""
+    x0, d = line
+    out = np.empty(len(poses))
+    for k, T in enumerate(poses):
+        R, t = T[:3, :3].T, -T[:3, :3].T @ T[:3, 3]
+        a, b = R @ x0 + t, R @ (x0 + d) + t
+        l = np.cross(a, b)
+        norm = np.hypot(l[0], l[1])
+        if not norm > 1e-15:
+            out[k] = np.inf
+            continue
+        l /= norm
+        out[k] = focal_px * max(abs(np.r_[s[k], 1.0] @ l), abs(np.r_[e[k], 1.0] @ l))
+    return out
+
+
+def track_consistency(tracks: dict, focal_px: float, min_frames: int = 5, inlier_px: float = 1.5,
+                      bad_px: float = 3.0, iterations: int = 60, seed: int = 0) -> dict:
+    """How well each line track stays on one 3D line, given the true camera poses.
+
+    tracks: {track id: [(frame index, T_W_C (4, 4), s (2,), e (2,)), ...]} with normalised, undistorted endpoints;
+    every sighting of the track (cam0 and cam1, each with its camera's pose). For each track seen in at least
+    min_frames frames, a 3D line is fitted robustly: RANSAC over pairs of sightings from different frames or cameras
+    (the line through their two back-projection planes; the most sightings within inlier_px wins), then refitted on
+    those inliers. Each sighting's distance is the larger of its endpoints' distances to that line's projection, in
+    pixels. Unlike a score against the scene's listed lines this judges every track, texture edges included: a track
+    that moved to another edge for a few frames shows as sightings far off its own line.
+    Returns {"tracks_scored", "sightings", "median_px", "p90_px", "share_above_px" (of sightings above bad_px),
+    "tracks_with_bad_sighting" (share of tracks), "bad_px"}.
+    """
+    rng = np.random.default_rng(seed)
+    distances, bad_tracks, scored = [], 0, 0
+    for _tid, sightings in sorted(tracks.items()):
+        frames = {f for f, *_ in sightings}
+        if len(frames) < min_frames:
+            continue
+        frame_of = np.array([f for f, *_ in sightings])
+        poses = np.array([T for _f, T, _s, _e in sightings])
+        s = np.array([x for _f, _T, x, _e in sightings])
+        e = np.array([x for _f, _T, _s, x in sightings])
+        planes = np.array([_sighting_plane(T, a, b) for T, a, b in zip(poses, s, e)])
+        best = None
+        for _ in range(iterations):
+            i, j = rng.choice(len(sightings), 2, replace=False)
+            if frame_of[i] == frame_of[j] and np.allclose(poses[i], poses[j]):
+                continue
+            line = _line_from_planes(planes[[i, j]])
+            if line is None:
+                continue
+            inliers = _sighting_distances(line, poses, s, e, focal_px) < inlier_px
+            if best is None or inliers.sum() > best.sum():
+                best = inliers
+        if best is None or best.sum() < 2:
+            continue
+        line = _line_from_planes(planes[best])
+        if line is None:
+            continue
+        dist = _sighting_distances(line, poses, s, e, focal_px)
+        scored += 1
+        bad_tracks += int(np.any(dist > bad_px))
+        distances.append(dist)
+    all_d = np.concatenate(distances) if distances else np.zeros(0)
+    return {
+        "tracks_scored": scored,
+        "sightings": int(all_d.size),
+        "median_px": float(np.median(all_d)) if all_d.size else float("nan"),
+        "p90_px": float(np.percentile(all_d, 90)) if all_d.size else float("nan"),
+        "share_above_px": float(np.mean(all_d > bad_px)) if all_d.size else float("nan"),
+        "tracks_with_bad_sighting": bad_tracks / max(1, scored),
+        "bad_px": bad_px,
+    }
+
+
 def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float = 0.0, seed: int = 0,
               options: Optional[dict] = None, tol_px: float = 2.0, min_length_px: float = 40.0,
               min_contrast: float = 8.0, progress=None, gyro_prediction: bool = True) -> dict:
@@ -586,6 +680,7 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
     final_length: dict[int, int] = {}
     delivered_length: list[int] = []
     per_frame = {"lines": [], "stereo": [], "total_ms": [], "cpu_total_ms": [], "cpu_left_ms": []}
+    sightings: dict[int, list] = {}
     n = len(rp.cam_t)
     for k, t in enumerate(rp.cam_t):
         T_W_B = pose_matrix(state.R[k], state.p[k])
@@ -628,6 +723,9 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
                 stereo[1] += j_
             final_length[i] = int(obs["track_length"][j])
             delivered_length.append(int(obs["track_length"][j]))
+            sightings.setdefault(i, []).append((k, T_W_C[0], obs["s0"][j], obs["e0"][j]))
+            if obs["has_right"][j]:
+                sightings[i].append((k, T_W_C[1], obs["s1"][j], obs["e1"][j]))
         prev_label = labels_now
         per_frame["lines"].append(len(obs["id"]))
         per_frame["stereo"].append(int(obs["has_right"].sum()))
@@ -646,6 +744,7 @@ def score_sim(trajectory: str, scene: str, duration: float = 30.0, start: float 
         "median_track_length_per_id": float(np.median(lengths)) if lengths else 0.0,
         "median_track_length_delivered": float(np.median(delivered_length)) if delivered_length else 0.0,
         "ids": len(lengths),
+        "track_consistency": track_consistency(sightings, float(cams[0].intrinsics[0])),
         "median_lines_per_frame": float(np.median(per_frame["lines"])),
         "median_stereo_per_frame": float(np.median(per_frame["stereo"])),
         "timing_ms": percentile_table({k: per_frame[k] for k in ("total_ms", "cpu_total_ms", "cpu_left_ms")}),

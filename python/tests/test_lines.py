@@ -280,6 +280,8 @@ def test_bench_lines_on_the_simulator(tmp_path):
     assert out["temporal_judged"] > 100 and out["stereo_judged"] > 100
     assert out["temporal_precision"] >= 0.95 and out["stereo_precision"] >= 0.95
     assert 0.2 <= out["detection_recall"] <= 1.0
+    tc = out["track_consistency"]
+    assert tc["tracks_scored"] > 10 and tc["median_px"] < 1.0
 
 
 def test_detection_recall_measures_endpoints_to_the_projected_line():
@@ -300,3 +302,39 @@ def test_projected_line_passes_through_the_segment():
     seg = project(EUROC_CAM0, a + np.linspace(0, 1, 20)[:, None] * (b - a))
     assert len(full) > 100
     assert max(lines._polyline_param(full, p)[0] for p in seg) < 0.05
+
+
+def _synthetic_tracks(shift_px: float = 0.0, focal: float = 460.0):
+    """Two 3D lines seen from 8 camera poses moving sideways (cam0, identity rotation): {id: sightings}. With
+    shift_px, track 1's sighting in frame 4 is moved that far across its line."""
+    rng = np.random.default_rng(3)
+    lines_W = [(np.array([-0.5, -0.4, 3.0]), np.array([0.6, 0.5, 3.5])),
+               (np.array([0.3, -0.6, 2.5]), np.array([0.2, 0.7, 4.0]))]
+    tracks = {0: [], 1: []}
+    for k in range(8):
+        T = np.eye(4)
+        T[:3, 3] = [0.08 * k, 0.01 * k, 0.0]
+        for tid, (a, b) in enumerate(lines_W):
+            ac, bc = a - T[:3, 3], b - T[:3, 3]
+            s, e = ac[:2] / ac[2], bc[:2] / bc[2]
+            s = s + rng.normal(0.0, 0.1 / focal, 2)
+            e = e + rng.normal(0.0, 0.1 / focal, 2)
+            if tid == 1 and k == 4 and shift_px:
+                d = (e - s) / np.linalg.norm(e - s)
+                nrm = np.array([-d[1], d[0]])
+                s, e = s + shift_px / focal * nrm, e + shift_px / focal * nrm
+            tracks[tid].append((k, T, s, e))
+    return tracks
+
+
+def test_track_consistency_finds_a_sighting_off_its_tracks_line():
+    clean = lines.track_consistency(_synthetic_tracks(), 460.0)
+    assert clean["tracks_scored"] == 2 and clean["sightings"] == 16
+    assert clean["median_px"] < 0.3 and clean["share_above_px"] == 0.0
+    assert clean["tracks_with_bad_sighting"] == 0.0
+    moved = lines.track_consistency(_synthetic_tracks(shift_px=6.0), 460.0)
+    assert moved["share_above_px"] == pytest.approx(1 / 16)  # only the moved sighting
+    assert moved["tracks_with_bad_sighting"] == pytest.approx(0.5)
+    assert moved["median_px"] < 0.3  # the others still fit their lines
+    # Too short tracks are not scored.
+    assert lines.track_consistency(_synthetic_tracks(), 460.0, min_frames=9)["tracks_scored"] == 0

@@ -107,6 +107,11 @@ def COMMAND(dataset, json_out, frames, detector, settings, repeat, mono, sim_sce
                    f"{res['detection_recall_unoccluded']:.3f} of all {res['gt_segments_unoccluded']} unoccluded")
         click.echo(f"temporal precision {res['temporal_precision']:.4f} ({res['temporal_judged']} judged), stereo "
                    f"precision {res['stereo_precision']:.4f} ({res['stereo_judged']} judged)")
+        tc = res["track_consistency"]
+        click.echo(f"track consistency ({tc['tracks_scored']} tracks seen in >= 5 frames, each against the 3D line "
+                   f"fitted to its sightings at the true poses): median {tc['median_px']:.2f} px, p90 "
+                   f"{tc['p90_px']:.2f} px, {100 * tc['share_above_px']:.2f} % of sightings above {tc['bad_px']:g} px, "
+                   f"in {100 * tc['tracks_with_bad_sighting']:.1f} % of the tracks")
         click.echo(f"median track length {res['median_track_length_per_id']:.0f} per id, "
                    f"{res['median_track_length_delivered']:.0f} for the delivered lines; "
                    f"{res['median_lines_per_frame']:.0f} lines / frame, {res['median_stereo_per_frame']:.0f} stereo")
