@@ -53,7 +53,7 @@ struct SchurLmOptions {
 };
 
 struct SchurLmSummary {
-  double initial_cost = 0.0;  // 0.5 * sum of robustified squared residuals
+  double initial_cost = 0.0;  // 0.5 * sum of robustified squared residuals (after the landmark_iterations, if any)
   double final_cost = 0.0;
   int iterations = 0;         // linear systems solved
   int successful_steps = 0;
