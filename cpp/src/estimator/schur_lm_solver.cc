@@ -479,18 +479,20 @@ bool SchurLmSolver::computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::Vect
   return dx_elim->allFinite();
 }
 
-void SchurLmSolver::applyStep(const Eigen::VectorXd& dx_kept, const Eigen::VectorXd& dx_elim) {
-  for (const Block& b : blocks_) {
-    const double* delta = b.eliminate ? dx_elim.data() + landmarks_[static_cast<std::size_t>(b.offset)].offset
-                                      : dx_kept.data() + b.offset;
-    if (b.manifold != nullptr) {
-      plus_out_.resize(static_cast<std::size_t>(b.ambient));
-      b.manifold->Plus(b.data, delta, plus_out_.data());
-      std::copy(plus_out_.begin(), plus_out_.end(), b.data);
-    } else {
-      for (int k = 0; k < b.ambient; ++k) b.data[k] += delta[k];
-    }
+void SchurLmSolver::plusBlock(const Block& b, const double* delta) {
+  if (b.manifold != nullptr) {
+    plus_out_.resize(static_cast<std::size_t>(b.ambient));
+    b.manifold->Plus(b.data, delta, plus_out_.data());
+    std::copy(plus_out_.begin(), plus_out_.end(), b.data);
+  } else {
+    for (int k = 0; k < b.ambient; ++k) b.data[k] += delta[k];
   }
+}
+
+void SchurLmSolver::applyStep(const Eigen::VectorXd& dx_kept, const Eigen::VectorXd& dx_elim) {
+  for (const Block& b : blocks_)
+    plusBlock(b, b.eliminate ? dx_elim.data() + landmarks_[static_cast<std::size_t>(b.offset)].offset
+                             : dx_kept.data() + b.offset);
 }
 
 double SchurLmSolver::landmarkCost(const Landmark& lm, Eigen::MatrixXd* H, Eigen::VectorXd* g) {
@@ -506,13 +508,13 @@ double SchurLmSolver::landmarkCost(const Landmark& lm, Eigen::MatrixXd* H, Eigen
   for (int q = 0; q < lm.res_count; ++q) {
     const Residual& res = residuals_[static_cast<std::size_t>(lm_residuals_[static_cast<std::size_t>(lm.res_first + q)])];
     const std::size_t nb = static_cast<std::size_t>(res.count);
-    lm_scratch_.resize(static_cast<std::size_t>(res.rows) * static_cast<std::size_t>(1 + b.ambient));
+    lm_scratch_.resize(static_cast<std::size_t>(res.rows) * static_cast<std::size_t>(1 + b.ambient + b.tangent));
     param_ptrs_.resize(nb);
     jacobian_ptrs_.assign(nb, nullptr);
     for (std::size_t k = 0; k < nb; ++k)
       param_ptrs_[k] = blocks_[static_cast<std::size_t>(res_blocks_[static_cast<std::size_t>(res.first) + k])].data;
     double* r_data = lm_scratch_.data();
-    double* J_data = r_data + res.rows;
+    double* J_data = r_data + res.rows;  // ambient, then the tangent Jacobian
     if (linearise) jacobian_ptrs_[static_cast<std::size_t>(res.landmark_pos)] = J_data;
     double rho[3];
     if (!evaluateResidual(res.cost, res.tangent, res.loss, res.rows, param_ptrs_.data(), r_data,
@@ -523,7 +525,11 @@ double SchurLmSolver::landmarkCost(const Landmark& lm, Eigen::MatrixXd* H, Eigen
     if (!linearise) continue;
     // Iteratively reweighted: the robust loss as the weight rho' of the squared residual.
     const Eigen::Map<const RowMajor> Ja(J_data, res.rows, b.ambient);
-    const RowMajor Jt = b.manifold != nullptr ? RowMajor(Ja * plus_jacobians_[static_cast<std::size_t>(lm.block)]) : RowMajor(Ja);
+    Eigen::Map<RowMajor> Jt(J_data + res.rows * b.ambient, res.rows, b.tangent);
+    if (b.manifold != nullptr)
+      Jt.noalias() = Ja * plus_jacobians_[static_cast<std::size_t>(lm.block)];
+    else
+      Jt = Ja;
     H->noalias() += rho[1] * Jt.transpose() * Jt;
     g->noalias() += rho[1] * Jt.transpose() * r;
   }
@@ -543,20 +549,15 @@ void SchurLmSolver::refineLandmarks() {
     if (!std::isfinite(cost)) continue;
     double lambda = 1e-3;  // Levenberg-Marquardt on the landmark alone: damping relative to diag(H)
     for (int it = 0; it < options_.landmark_iterations; ++it) {
-      Eigen::MatrixXd A = lm_H_;
-      A.diagonal() += lambda * lm_H_.diagonal().cwiseMax(options_.min_diagonal);
-      const Eigen::LLT<Eigen::MatrixXd> llt(A);
-      if (llt.info() != Eigen::Success) break;
-      const Eigen::VectorXd delta = llt.solve(-lm_g_);
-      if (!delta.allFinite()) break;
+      lm_A_ = lm_H_;
+      lm_A_.diagonal() += lambda * lm_H_.diagonal().cwiseMax(options_.min_diagonal);
+      lm_llt_.compute(lm_A_);
+      if (lm_llt_.info() != Eigen::Success) break;
+      lm_delta_ = -lm_g_;
+      lm_llt_.solveInPlace(lm_delta_);
+      if (!lm_delta_.allFinite()) break;
       lm_saved_.assign(b.data, b.data + b.ambient);
-      plus_out_.resize(static_cast<std::size_t>(b.ambient));
-      if (b.manifold != nullptr) {
-        b.manifold->Plus(b.data, delta.data(), plus_out_.data());
-      } else {
-        for (int k = 0; k < b.ambient; ++k) plus_out_[static_cast<std::size_t>(k)] = b.data[k] + delta(k);
-      }
-      std::copy(plus_out_.begin(), plus_out_.end(), b.data);
+      plusBlock(b, lm_delta_.data());
       const double new_cost = landmarkCost(lm, nullptr, nullptr);
       if (!(new_cost < cost)) {
         std::copy(lm_saved_.begin(), lm_saved_.end(), b.data);

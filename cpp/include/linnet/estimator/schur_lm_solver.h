@@ -130,6 +130,8 @@ class SchurLmSolver {
   /// Solves the damped system for the step; false if the reduced system is not positive definite.
   bool computeStep(double mu, Eigen::VectorXd* dx_kept, Eigen::VectorXd* dx_elim, double* model_decrease);
   void applyStep(const Eigen::VectorXd& dx_kept, const Eigen::VectorXd& dx_elim);
+  /// One block moved by a tangent step (its manifold's Plus, or added).
+  void plusBlock(const Block& b, const double* delta);
   /// options_.landmark_iterations damped Gauss-Newton steps of every multi-dimensional landmark alone, each kept only
   /// if it lowers that landmark's robust cost.
   void refineLandmarks();
@@ -166,9 +168,13 @@ class SchurLmSolver {
   Eigen::LLT<Eigen::MatrixXd> llt_;
   SchurLmOptions options_;
   std::vector<double> saved_, plus_out_;
-  std::vector<double> lm_scratch_, lm_saved_;  // refineLandmarks: one residual and its landmark Jacobian; a block
-  Eigen::MatrixXd lm_H_;                  // refineLandmarks: one landmark's normal equations
-  Eigen::VectorXd lm_g_;
+  // refineLandmarks scratch, kept between landmarks (same sizes: no allocation after the first): one residual with
+  // its landmark's ambient and tangent Jacobians, the landmark's values before a step, its normal equations, the
+  // damped system and the step.
+  std::vector<double> lm_scratch_, lm_saved_;
+  Eigen::MatrixXd lm_H_, lm_A_;
+  Eigen::VectorXd lm_g_, lm_delta_;
+  Eigen::LLT<Eigen::MatrixXd> lm_llt_;
 };
 
 }  // namespace linnet
