@@ -11,6 +11,12 @@ namespace linnet {
 
 namespace {
 
+// Square root of a covariance's largest eigenvalue.
+double largestStd(const Mat3& covariance) {
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(covariance, Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, es.eigenvalues()(2)));
+}
+
 constexpr double kDegToRad = M_PI / 180.0;
 
 double wrapPi(double a) { return std::atan2(std::sin(a), std::cos(a)); }
@@ -133,13 +139,10 @@ bool LoopCloser::tryLoop(std::size_t k) {
       continue;
     double sigma_t = options_.loop_sigma_m, sigma_yaw = options_.loop_sigma_yaw_deg * kDegToRad;
     if (options_.loop_pnp_sigma_scale > 0.0) {
-      // The PnP's covariance in the body frame (the extrinsic's lever arm left out); its largest standard deviations.
-      const Mat3 R_BC = T_B_C0_.R();
-      const Eigen::SelfAdjointEigenSolver<Mat3> pos(R_BC * m.covariance.block<3, 3>(3, 3) * R_BC.transpose(),
-                                                    Eigen::EigenvaluesOnly);
-      const Eigen::SelfAdjointEigenSolver<Mat3> rot(m.covariance.block<3, 3>(0, 0), Eigen::EigenvaluesOnly);
-      sigma_t = std::max(sigma_t, options_.loop_pnp_sigma_scale * std::sqrt(std::max(0.0, pos.eigenvalues()(2))));
-      sigma_yaw = std::max(sigma_yaw, options_.loop_pnp_sigma_scale * std::sqrt(std::max(0.0, rot.eigenvalues()(2))));
+      // The PnP's largest position and rotation standard deviations (a rotation into the body frame leaves them as
+      // they are; the extrinsic's lever arm is left out).
+      sigma_t = std::max(sigma_t, options_.loop_pnp_sigma_scale * largestStd(m.covariance.block<3, 3>(3, 3)));
+      sigma_yaw = std::max(sigma_yaw, options_.loop_pnp_sigma_scale * largestStd(m.covariance.block<3, 3>(0, 0)));
     }
     graph_.addEdge(graph_.loopEdge(j, k, T_Bj_Bk, sigma_t, sigma_yaw));
     PoseGraphOptions po;

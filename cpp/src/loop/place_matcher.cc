@@ -95,7 +95,7 @@ namespace {
 // perturbation R <- exp(dtheta) R, t <- t + dt: sigma^2 (J^T J)^-1 with sigma^2 the residuals' variance (2 n - 6
 // degrees of freedom). False when the system is singular or there are too few points.
 bool pnpCovariance(const std::vector<cv::Point3d>& object, const std::vector<cv::Point2d>& image, const Mat3& R,
-                   const Vec3& t, Eigen::Matrix<double, 6, 6>* covariance, double* rms) {
+                   const Vec3& t, Eigen::Matrix<double, 6, 6>* covariance) {
   const int n = static_cast<int>(object.size());
   if (n < 4) return false;
   Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
@@ -117,7 +117,6 @@ bool pnpCovariance(const std::vector<cv::Point3d>& object, const std::vector<cv:
   if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
   const double variance = sum_sq / std::max(1, 2 * n - 6);
   *covariance = variance * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
-  *rms = std::sqrt(sum_sq / n);
   return covariance->allFinite();
 }
 
@@ -164,8 +163,7 @@ PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const Pla
     for (int c = 0; c < 3; ++c) R(r, c) = Rcv.at<double>(r, c);
   const Vec3 t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
   if (!R.allFinite() || !t.allFinite()) return out;
-  if (!pnpCovariance(obj_in, img_in, R, t, &out.covariance, &out.rms_px)) return out;
-  out.rms_px *= options.focal_px;
+  if (!pnpCovariance(obj_in, img_in, R, t, &out.covariance)) return out;
   out.T_Cold_Cnew = Pose(R, t);  // x_b = R x_a + t: T_Cb_Ca
   out.ok = true;
   return out;

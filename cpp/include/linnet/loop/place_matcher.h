@@ -56,7 +56,6 @@ struct PlaceMatch {
   // Covariance of T_Cold_Cnew for the perturbation R <- exp(dtheta) R, t <- t + dt (order dtheta, dt; rad, m): the
   // PnP's Gauss-Newton inverse scaled by its inliers' residual variance (which holds the old landmarks' errors too).
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  double rms_px = 0.0;       // RMS reprojection error of the inliers at the solution, pixels
 };
 
 /// Rebuilds p_C / descriptors_3d of the tracked corners: p_W_tracked[i] (the odometry's landmark position of
