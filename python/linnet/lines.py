@@ -564,7 +564,7 @@ def _sighting_plane(T_W_C: np.ndarray, s: np.ndarray, e: np.ndarray) -> np.ndarr
 
 def _line_from_planes(P: np.ndarray) -> Optional[tuple]:
     """The 3D line (point, unit direction) closest to lying in every plane of P (K, 4): the two homogeneous points
-    spanning A's least-squares null space."""
+    spanning P's least-squares null space."""
     _, _, Vt = np.linalg.svd(P)
     X1, X2 = Vt[-1], Vt[-2]
     d = X1[3] * X2[:3] - X2[3] * X1[:3]
@@ -574,21 +574,20 @@ def _line_from_planes(P: np.ndarray) -> Optional[tuple]:
     return np.cross(d, m) / (d @ d), d / np.linalg.norm(d)
 
 
-def _sighting_distances(line: tuple, poses: np.ndarray, s: np.ndarray, e: np.ndarray, focal_px: float) -> np.ndarray:
-    """Largest endpoint distance (pixels, focal_px per normalised unit) of each sighting to the line's projection."""
+def _sighting_distances(line: tuple, R_C_W: np.ndarray, t_C_W: np.ndarray, s: np.ndarray, e: np.ndarray,
+                        focal_px: float) -> np.ndarray:
+    """Largest endpoint distance (pixels, focal_px per normalised unit) of each sighting to the line's projection;
+    the sightings' cameras as R_C_W (K, 3, 3), t_C_W (K, 3)."""
     x0, d = line
-    out = np.empty(len(poses))
-    for k, T in enumerate(poses):
-        R, t = T[:3, :3].T, -T[:3, :3].T @ T[:3, 3]
-        a, b = R @ x0 + t, R @ (x0 + d) + t
-        l = np.cross(a, b)
-        norm = np.hypot(l[0], l[1])
-        if not norm > 1e-15:
-            out[k] = np.inf
-            continue
-        l /= norm
-        out[k] = focal_px * max(abs(np.r_[s[k], 1.0] @ l), abs(np.r_[e[k], 1.0] @ l))
-    return out
+    a = R_C_W @ x0 + t_C_W
+    b = R_C_W @ (x0 + d) + t_C_W
+    l = np.cross(a, b)
+    norm = np.hypot(l[:, 0], l[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        l = l / norm[:, None]
+        ds = np.abs(np.einsum("kj,kj->k", np.c_[s, np.ones(len(s))], l))
+        de = np.abs(np.einsum("kj,kj->k", np.c_[e, np.ones(len(e))], l))
+    return np.where(norm > 1e-15, focal_px * np.maximum(ds, de), np.inf)
 
 
 def track_consistency(tracks: dict, focal_px: float, min_frames: int = 5, inlier_px: float = 1.5,
@@ -616,6 +615,8 @@ def track_consistency(tracks: dict, focal_px: float, min_frames: int = 5, inlier
         s = np.array([x for _f, _T, x, _e in sightings])
         e = np.array([x for _f, _T, _s, x in sightings])
         planes = np.array([_sighting_plane(T, a, b) for T, a, b in zip(poses, s, e)])
+        R_C_W = np.transpose(poses[:, :3, :3], (0, 2, 1))
+        t_C_W = -np.einsum("kij,kj->ki", R_C_W, poses[:, :3, 3])
         best = None
         for _ in range(iterations):
             i, j = rng.choice(len(sightings), 2, replace=False)
@@ -624,7 +625,7 @@ def track_consistency(tracks: dict, focal_px: float, min_frames: int = 5, inlier
             line = _line_from_planes(planes[[i, j]])
             if line is None:
                 continue
-            inliers = _sighting_distances(line, poses, s, e, focal_px) < inlier_px
+            inliers = _sighting_distances(line, R_C_W, t_C_W, s, e, focal_px) < inlier_px
             if best is None or inliers.sum() > best.sum():
                 best = inliers
         if best is None or best.sum() < 2:
@@ -632,7 +633,7 @@ def track_consistency(tracks: dict, focal_px: float, min_frames: int = 5, inlier
         line = _line_from_planes(planes[best])
         if line is None:
             continue
-        dist = _sighting_distances(line, poses, s, e, focal_px)
+        dist = _sighting_distances(line, R_C_W, t_C_W, s, e, focal_px)
         scored += 1
         bad_tracks += int(np.any(dist > bad_px))
         distances.append(dist)
