@@ -92,6 +92,11 @@ void EdgeDrawing::link() {
   ridge_.resize(static_cast<std::size_t>(cols) + 8);
   std::uint8_t* ridge = ridge_.data();
   std::fill_n(ridge + cols, 8, 0);  // the tail read by the word scan (a wider previous image may have set it)
+  // 1 on the scanned columns (every step-th, the borders excluded): the ridge test keeps only those, so that the
+  // word scan below visits anchors only.
+  scan_cols_.assign(static_cast<std::size_t>(cols), 0);
+  for (int x = step; x < cols - 1; x += step) scan_cols_[static_cast<std::size_t>(x)] = 1;
+  const std::uint8_t* scan = scan_cols_.data();
   for (int y = 1; y < rows - 1; y += step) {
     const std::uint16_t* m = px_.ptr<std::uint16_t>(y);
     const std::uint16_t* up = px_.ptr<std::uint16_t>(y - 1);
@@ -101,7 +106,7 @@ void EdgeDrawing::link() {
       const int g = magnitude(m[x]);
       const bool across_x = (g - magnitude(m[x - 1]) >= A) & (g - magnitude(m[x + 1]) >= A);
       const bool across_y = (g - magnitude(up[x]) >= A) & (g - magnitude(dn[x]) >= A);
-      ridge[x] = static_cast<std::uint8_t>((g != 0) & ((m[x] & kDirBit) ? across_x : across_y));
+      ridge[x] = static_cast<std::uint8_t>((g != 0) & ((m[x] & kDirBit) ? across_x : across_y)) & scan[x];
     }
     ridge[0] = ridge[cols - 1] = 0;
     // ridge[] holds 0 / 1 bytes, so each hit is the lowest set bit of its byte: walk the set bits of each 8-byte
@@ -113,7 +118,6 @@ void EdgeDrawing::link() {
       while (word != 0) {
         const int k = x + (std::countr_zero(word) >> 3);
         word &= word - 1;
-        if (step > 1 && k % step != 0) continue;
         anchors_.push_back(y * cols + k);
         max_mag = std::max(max_mag, magnitude(m[k]));
       }

@@ -52,6 +52,7 @@ class EdgeDrawing {
   static constexpr std::uint16_t kMagMask = 0x0FFF, kDirBit = 0x4000, kEdgeBit = 0x8000;
   static int magnitude(std::uint16_t word) { return word & kMagMask; }
   std::vector<std::uint8_t> ridge_;  // one row of the ridge test
+  std::vector<std::uint8_t> scan_cols_;  // 1 on the columns scanned for anchors
   std::vector<int> anchors_;      // y * cols + x
   std::vector<int> bucket_start_;
   std::vector<int> sorted_;
