@@ -76,7 +76,11 @@ bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, do
   std::array<ExtraMap, kMaxPoses> d_extra;
   std::array<const double*, kMaxBlocks> inner_params{};
   std::copy(parameters, parameters + n_inner, inner_params.begin());
-  const bool derivatives = jacobians != nullptr;
+  // The transform's derivatives only when a pose's or the extra block's Jacobian is wanted (not for a landmark's
+  // alone, as in the solver's landmark iterations).
+  bool derivatives = jacobians != nullptr && jacobians[n_inner] != nullptr;
+  for (std::size_t k = 0; k < n_poses && jacobians != nullptr; ++k)
+    derivatives = derivatives || jacobians[pose_blocks_[k]] != nullptr;
   const int extra_size = parameter_block_sizes()[static_cast<std::size_t>(n_inner)];
   for (std::size_t k = 0; k < n_poses; ++k) {
     const double* body = parameters[pose_blocks_[k]];
@@ -110,7 +114,8 @@ bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, do
     setPose(T, moved[k].data());
     inner_params[static_cast<std::size_t>(pose_blocks_[k])] = moved[k].data();
   }
-  if (jacobians == nullptr) return inner_tangent_->evaluateTangentSpace(inner_params.data(), residuals, nullptr);
+  // Without the transform's derivatives the other blocks' Jacobians (if any) come straight from the inner factor.
+  if (!derivatives) return inner_tangent_->evaluateTangentSpace(inner_params.data(), residuals, jacobians);
 
   // Inner Jacobians: straight into the output for the other blocks, into J_t for the transformed poses.
   const bool want_extra = jacobians[n_inner] != nullptr;

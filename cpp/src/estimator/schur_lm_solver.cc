@@ -524,6 +524,16 @@ double SchurLmSolver::landmarkCost(const Landmark& lm, Eigen::MatrixXd* H, Eigen
     const Eigen::Map<const Eigen::VectorXd> r(r_data, res.rows);
     if (!linearise) continue;
     // Iteratively reweighted: the robust loss as the weight rho' of the squared residual.
+    if (b.manifold != nullptr && res.rows == 2 && b.ambient == 6 && b.tangent == 4) {
+      // The common case (a line's 2-row residual), with fixed sizes: the generic product's dispatch would cost more
+      // than the arithmetic of these small matrices.
+      RowMat<2, 4> Jt;
+      Jt.noalias() = Eigen::Map<const RowMat<2, 6>>(J_data) *
+                     Eigen::Map<const RowMat<6, 4>>(plus_jacobians_[static_cast<std::size_t>(lm.block)].data());
+      Eigen::Map<Eigen::Matrix4d>(H->data()).noalias() += rho[1] * Jt.transpose() * Jt;
+      Eigen::Map<Eigen::Vector4d>(g->data()).noalias() += rho[1] * Jt.transpose() * Eigen::Map<const Eigen::Vector2d>(r_data);
+      continue;
+    }
     const Eigen::Map<const RowMajor> Ja(J_data, res.rows, b.ambient);
     Eigen::Map<RowMajor> Jt(J_data + res.rows * b.ambient, res.rows, b.tangent);
     if (b.manifold != nullptr)

@@ -288,6 +288,35 @@ TEST(PoseTransformMemo, SharedTransformsGiveTheSameResidualsAndJacobiansBitForBi
   }
 }
 
+TEST(PoseWrappedFactor, LandmarkJacobianAloneEqualsItsPartOfTheFullRequestBitForBit) {
+  // The solver's landmark iterations ask for the landmark's Jacobian alone; the wrappers then skip their transforms'
+  // derivatives. Time shift outside, rig inside, as the estimator nests them, with memos shared.
+  std::mt19937 rng(29);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (int trial = 0; trial < 10; ++trial) {
+    const Pose T_W_B = randomPose(rng, 1.0, 3.0);
+    const Pose T_B_R0 = randomPose(rng, 0.01, 0.01), T_B_R = randomPose(rng, 0.01, 0.01);
+    LineCase c = lineCase(rng, T_W_B * T_B_R * cam0());
+    auto line = std::make_shared<LineReprojectionFactor>(c.s, c.e, T_B_R0 * cam0(), kFocal);
+    auto rig = std::make_shared<RigCorrectedFactor>(line, std::vector<int>{0}, T_B_R0);
+    const auto rig_memo = std::make_shared<PoseTransformMemo>();
+    rig->useMemo(rig_memo, {0});
+    const TimeShiftedFactor f(rig, {0}, {Vec3(n(rng), n(rng), n(rng))}, {Vec3(n(rng), n(rng), n(rng))});
+    auto bp = block(T_W_B), br = block(T_B_R);
+    double td = 0.005 * n(rng);
+    const double* params[] = {bp.data(), c.L.data(), br.data(), &td};
+    std::array<double, 2> r_all{}, r_one{};
+    std::array<std::array<double, 14>, 4> all{}, one{};
+    double* j_all[] = {all[0].data(), all[1].data(), all[2].data(), all[3].data()};
+    double* j_one[] = {nullptr, one[1].data(), nullptr, nullptr};
+    ASSERT_TRUE(f.Evaluate(params, r_one.data(), j_one));  // first: the memo holds no derivatives yet
+    ASSERT_TRUE(f.Evaluate(params, r_all.data(), j_all));
+    EXPECT_EQ(r_all, r_one) << "trial " << trial;
+    EXPECT_EQ(all[1], one[1]) << "trial " << trial;
+    EXPECT_NE(all[0], one[0]);  // the pose's Jacobian was written in the full request only
+  }
+}
+
 // --- cam1's stereo correction S (cam1 at T_B_C1 * S)
 
 TEST(StereoCorrection, Cam1PointResidualIsTheInnerFactorWithCam1Corrected) {

@@ -39,6 +39,7 @@ class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public 
  private:
   Vec3 s_, e_;  // homogenised endpoints
   Pose T_B_C_;
+  Mat3 R_C_B_;  // T_B_C_'s rotation, transposed (constant: converted from the quaternion once)
   double sqrt_info_;
 };
 
