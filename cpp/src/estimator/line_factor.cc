@@ -10,7 +10,11 @@
 namespace linnet {
 
 LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info)
-    : s_(s.x(), s.y(), 1.0), e_(e.x(), e.y(), 1.0), T_B_C_(T_B_C), R_C_B_(T_B_C.R().transpose()), sqrt_info_(sqrt_info) {}
+    : s_(s.x(), s.y(), 1.0),
+      e_(e.x(), e.y(), 1.0),
+      R_C_B_(T_B_C.R().transpose()),
+      t_B_C_(T_B_C.p),
+      sqrt_info_(sqrt_info) {}
 
 bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual,
                                       Eigen::Matrix<double, 2, 6>* J_pose, Eigen::Matrix<double, 2, 6>* J_line) const {
@@ -20,7 +24,7 @@ bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* 
   const Vec3 n_B = Rt * (n_W - T_W_B.p.cross(v_W));
   const Vec3 v_B = Rt * v_W;
   const Mat3& R_C_B = R_C_B_;
-  const Vec3& t = T_B_C_.p;
+  const Vec3& t = t_B_C_;
   const Vec3 l = R_C_B * (n_B - t.cross(v_B));  // image line, normalised coordinates
   const double ln2 = l.x() * l.x() + l.y() * l.y();
   if (!(ln2 > 1e-30)) return false;

@@ -38,8 +38,8 @@ class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public 
 
  private:
   Vec3 s_, e_;  // homogenised endpoints
-  Pose T_B_C_;
-  Mat3 R_C_B_;  // T_B_C_'s rotation, transposed (constant: converted from the quaternion once)
+  Mat3 R_C_B_;  // the camera's extrinsics T_B_C: its rotation (transposed, converted from the quaternion once)
+  Vec3 t_B_C_;  // and its position in B
   double sqrt_info_;
 };
 
