@@ -79,8 +79,11 @@ def _parse_coordinates(path: Path, number: int, tokens) -> list:
     return values
 
 
-def read_map_lines(path: PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def read_map_lines(path: PathLike, with_sigma: bool = False) -> tuple:
     """Read a map_lines.csv: (ids (N,) int64, segments (N, 2, 3) float64 metres in W, observations (N,) int64).
+
+    With ``with_sigma`` a fourth array (N,) holds each line's predicted endpoint standard deviation in metres (the
+    11th column, endpoint_sigma; infinity where the file does not give it).
 
     Lines starting with ``#`` and blank lines are skipped; a file with only the header gives zero-length arrays.
     Raises InputError naming the file and line for a wrong column count, a value that is not a number (integers for
@@ -88,19 +91,27 @@ def read_map_lines(path: PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     id.
     """
     path = Path(path)
-    ids, segments, observations = [], [], []
+    ids, segments, observations, sigmas = [], [], [], []
     first_line_of_id = {}
     for number, raw in enumerate(_read_text_lines(path, "a map_lines.csv"), start=1):
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
         tokens = [tok.strip() for tok in line.split(",")]
-        if len(tokens) == len(MAP_LINES_COLUMNS) + 2:
+        sigma = math.inf
+        if len(tokens) == len(MAP_LINES_COLUMNS) + 3:
+            try:
+                sigma = float(tokens[-1])
+            except ValueError:
+                raise InputError(f"{path}:{number}: endpoint_sigma '{tokens[-1]}' is not a number") from None
+            if math.isnan(sigma) or sigma < 0.0:
+                raise InputError(f"{path}:{number}: endpoint_sigma '{tokens[-1]}' is not a number >= 0")
+        if len(tokens) in (len(MAP_LINES_COLUMNS) + 2, len(MAP_LINES_COLUMNS) + 3):
             tokens = tokens[:len(MAP_LINES_COLUMNS)]  # t_last [ns], triangulation_angle [deg]: not needed here
         if len(tokens) != len(MAP_LINES_COLUMNS):
             raise InputError(f"{path}:{number}: {len(tokens)} columns, expected {len(MAP_LINES_COLUMNS)} "
-                             f"({','.join(MAP_LINES_COLUMNS)}) or {len(MAP_LINES_COLUMNS) + 2} "
-                             f"(with t_last,triangulation_angle)")
+                             f"({','.join(MAP_LINES_COLUMNS)}), {len(MAP_LINES_COLUMNS) + 2} "
+                             f"(with t_last,triangulation_angle) or {len(MAP_LINES_COLUMNS) + 3} (and endpoint_sigma)")
         line_id = _parse_int(path, number, tokens[0], "id")
         xyz = _parse_coordinates(path, number, tokens[1:7])
         obs = _parse_int(path, number, tokens[7], "observations")
@@ -115,8 +126,10 @@ def read_map_lines(path: PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ids.append(line_id)
         segments.append([xyz[0:3], xyz[3:6]])
         observations.append(obs)
-    return (np.array(ids, dtype=np.int64), np.array(segments, dtype=np.float64).reshape(-1, 2, 3),
-            np.array(observations, dtype=np.int64))
+        sigmas.append(sigma)
+    out = (np.array(ids, dtype=np.int64), np.array(segments, dtype=np.float64).reshape(-1, 2, 3),
+           np.array(observations, dtype=np.int64))
+    return out + (np.array(sigmas, dtype=np.float64),) if with_sigma else out
 
 
 def read_true_lines(path: PathLike) -> np.ndarray:
@@ -327,12 +340,14 @@ def _json_number(x: float) -> Optional[float]:
 
 
 def evaluate_run_map(run_dir: PathLike, dataset: PathLike, min_observations: int = 5, within_m: float = 0.05,
-                     t_max_diff: float = 0.01) -> dict:
+                     t_max_diff: float = 0.01, max_sigma_m: Optional[float] = None) -> dict:
     """Score RUN_DIR/map_lines.csv against DATASET/sim/lines.csv; returns a JSON-ready dict.
 
     The map lines observed by at least ``min_observations`` frames are mapped into the ground-truth frame by the SE3
     alignment (no scale) of RUN_DIR/trajectory.tum onto DATASET/mav0/state_groundtruth_estimate0/data.csv (time
     stamps associated within ``t_max_diff`` seconds, as ``linnet.evaluation.ape``) and scored by ``score_line_map``.
+    With ``max_sigma_m`` only the lines whose predicted endpoint standard deviation (map_lines.csv's endpoint_sigma)
+    is at most that many metres are scored (a file without that column then scores none).
     The dict holds the summary figures of LineMapScore.summary(), "lines_total", "lines_evaluated",
     "min_observations", the file names and "alignment" (T_gt_W's rotation and translation, the pose pairs and the
     APE RMSE of that alignment). Raises InputError naming the missing or malformed file.
@@ -340,6 +355,8 @@ def evaluate_run_map(run_dir: PathLike, dataset: PathLike, min_observations: int
     run_dir, dataset = Path(run_dir), Path(dataset)
     if min_observations < 0:
         raise ValueError(f"min_observations must be >= 0, got {min_observations}")
+    if max_sigma_m is not None and not max_sigma_m >= 0.0:
+        raise ValueError(f"max_sigma_m must be >= 0 m, got {max_sigma_m}")
     if not run_dir.is_dir():
         raise InputError(f"{run_dir}: not a folder (expected a 'linnet run' output folder)")
     map_file = run_dir / "map_lines.csv"
@@ -347,7 +364,7 @@ def evaluate_run_map(run_dir: PathLike, dataset: PathLike, min_observations: int
         raise InputError(f"{map_file}: no such file (the run's line map)")
     traj_file = _run_trajectory(run_dir)
     gt_file, lines_file = _dataset_paths(dataset)
-    _ids, segments, observations = read_map_lines(map_file)
+    _ids, segments, observations, sigmas = read_map_lines(map_file, with_sigma=True)
     true_segments = read_true_lines(lines_file)
     estimate = ev.load_trajectory(traj_file)
     ground_truth = ev.load_trajectory(gt_file)
@@ -356,6 +373,8 @@ def evaluate_run_map(run_dir: PathLike, dataset: PathLike, min_observations: int
     T_gt_W[:3, :3] = res.rotation
     T_gt_W[:3, 3] = res.translation
     keep = observations >= min_observations
+    if max_sigma_m is not None:
+        keep &= sigmas <= max_sigma_m
     try:
         score = score_line_map(segments[keep], true_segments, T_gt_W=T_gt_W, within_m=within_m)
     except ValueError as e:
@@ -368,6 +387,7 @@ def evaluate_run_map(run_dir: PathLike, dataset: PathLike, min_observations: int
         "lines_total": int(segments.shape[0]),
         "lines_evaluated": score.count,
         "min_observations": int(min_observations),
+        "max_sigma_m": None if max_sigma_m is None else float(max_sigma_m),
     }
     out.update(score.summary())
     out["alignment"] = {

@@ -324,6 +324,25 @@ def test_evaluate_run_map_recovers_the_frame_and_scores(run_and_dataset):
     assert none["lines_evaluated"] == 0 and none["median_angle_deg"] is None and none["frac_within"] is None
     # the dataset may also be given as its mav0 folder
     assert map_eval.evaluate_run_map(run, dataset / "mav0")["lines_evaluated"] == 4
+    # without an endpoint_sigma column a sigma gate keeps nothing
+    assert map_eval.evaluate_run_map(run, dataset, max_sigma_m=1.0)["lines_evaluated"] == 0
+
+
+def test_evaluate_run_map_gates_on_the_endpoint_sigma(run_and_dataset):
+    run, dataset = run_and_dataset
+    rows = (run / "map_lines.csv").read_text(encoding="utf-8").splitlines()
+    sigmas = ["0.01", "0.002", "inf", "0.05", "0.02"]  # observation counts 17, 3, 5, 40, 6
+    text = rows[0] + ",t_last [ns],triangulation_angle [deg],endpoint_sigma [m]\n"
+    text += "".join(f"{row},123,4.5,{sg}\n" for row, sg in zip(rows[1:], sigmas))
+    (run / "map_lines.csv").write_text(text, encoding="utf-8")
+    _ids, _segs, _obs, sig = map_eval.read_map_lines(run / "map_lines.csv", with_sigma=True)
+    assert sig.tolist() == [0.01, 0.002, math.inf, 0.05, 0.02]
+    report = map_eval.evaluate_run_map(run, dataset, max_sigma_m=0.02)
+    assert report["lines_evaluated"] == 2 and report["max_sigma_m"] == 0.02  # ids 100 and 104; 101 has 3 observations
+    assert map_eval.evaluate_run_map(run, dataset)["lines_evaluated"] == 4  # no gate: as before
+    (run / "map_lines.csv").write_text(text.replace(",0.05\n", ",-1\n"), encoding="utf-8")
+    with pytest.raises(map_eval.InputError, match=r"map_lines.csv:5: endpoint_sigma '-1' is not a number >= 0"):
+        map_eval.read_map_lines(run / "map_lines.csv")
 
 
 @pytest.mark.parametrize("remove, pattern", [

@@ -183,6 +183,7 @@ MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineS
   m.observations = lm.observations;
   m.t_last = lm.t_last;
   m.angle_deg = std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad;
+  m.sigma_m = lineEndpointSigmaM(L, sightings, m.a, m.b, focal_length_, options_.pixel_sigma);
   return m;
 }
 

@@ -6,6 +6,8 @@
 #include <limits>
 #include <optional>
 
+#include <Eigen/Eigenvalues>
+
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
 #include <ceres/solver.h>
@@ -69,6 +71,55 @@ bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinement
   if (!refined.allFinite() || !(meanSightingErrorPx(refined, sightings, options.focal_px) < before)) return false;
   *L_W = refined;
   return true;
+}
+
+double lineEndpointSigmaM(const Vec6& L_W, const std::vector<LineSighting>& sightings, const Vec3& a, const Vec3& b,
+                          double focal_px, double pixel_sigma) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  if (sightings.size() < 2 || !L_W.allFinite() || !(pixel_sigma > 0.0)) return kInf;
+  const LineManifold manifold;
+  Eigen::Matrix<double, kLineAmbientSize, kLineTangentSize, Eigen::RowMajor> plus;
+  manifold.PlusJacobian(L_W.data(), plus.data());
+  // Information of the line's tangent coordinates from the whitened endpoint distances.
+  Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
+  for (const LineSighting& o : sightings) {
+    // The sighting's camera is the factor's body (identity extrinsics).
+    const LineReprojectionFactor f(o.s, o.e, Pose(), focal_px / pixel_sigma);
+    Vec2 r;
+    Eigen::Matrix<double, 2, 6> J_line;
+    if (!f.evaluate(o.T_W_C, L_W, &r, nullptr, &J_line)) continue;
+    const Eigen::Matrix<double, 2, 4> J = J_line * plus;
+    info.noalias() += J.transpose() * J;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(info);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(3))))
+    return kInf;
+  const Eigen::Matrix4d cov = eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
+                              eig.eigenvectors().transpose();
+  // An endpoint x is carried by the line as its foot q(L) = p0 + ((x - p0) . d) d; its displacement across the line
+  // (I - d d^T) dq / d(delta) by central differences along each tangent direction.
+  const auto foot = [](const Vec6& L, const Vec3& x) {
+    const Vec3 d = pluckerDirection(L), p0 = pluckerClosestPointToOrigin(L);
+    return Vec3(p0 + (x - p0).dot(d) * d);
+  };
+  const Vec3 d0 = pluckerDirection(L_W);
+  const Mat3 across = Mat3::Identity() - d0 * d0.transpose();
+  constexpr double kStep = 1e-6;
+  double worst = 0.0;
+  for (const Vec3* x : {&a, &b}) {
+    Eigen::Matrix<double, 3, 4> D;
+    for (int k = 0; k < kLineTangentSize; ++k) {
+      Eigen::Vector4d delta = Eigen::Vector4d::Zero();
+      Vec6 plus_L, minus_L;
+      delta(k) = kStep;
+      manifold.Plus(L_W.data(), delta.data(), plus_L.data());
+      delta(k) = -kStep;
+      manifold.Plus(L_W.data(), delta.data(), minus_L.data());
+      D.col(k) = across * (foot(plus_L, *x) - foot(minus_L, *x)) / (2.0 * kStep);
+    }
+    worst = std::max(worst, (D * cov * D.transpose()).trace());
+  }
+  return std::isfinite(worst) ? std::sqrt(worst) : kInf;
 }
 
 }  // namespace linnet

@@ -208,14 +208,14 @@ MapGeometry readPly(const std::string& path) {
 
 void writeMapLinesCsv(const std::string& path, const std::vector<MapLine>& lines) {
   std::string text =
-      "#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations,t_last [ns],triangulation_angle [deg]\n";
+      "#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations,t_last [ns],triangulation_angle [deg],endpoint_sigma [m]\n";
   text.reserve(text.size() + lines.size() * 128);
   for (const MapLine& l : lines) {
     text += std::to_string(l.id);
     for (const Vec3* v : {&l.a, &l.b})
       for (int k = 0; k < 3; ++k) text.append(",").append(io::formatDouble((*v)[k]));
     text += "," + std::to_string(l.observations) + "," + std::to_string(l.t_last) + "," +
-            io::formatDouble(l.angle_deg) + "\n";
+            io::formatDouble(l.angle_deg) + "," + io::formatDouble(l.sigma_m) + "\n";
   }
   writeTextFile(path, text);
 }
@@ -224,13 +224,14 @@ std::vector<MapLine> readMapLinesCsv(const std::string& path) {
   const io::TextFile file = io::TextFile::read(path);
   io::TextLines lines = file.lines();
   std::string_view line;
-  std::string_view f[11];
+  std::string_view f[12];
   std::vector<MapLine> out;
   while (lines.next(&line)) {
     if (line.empty() || line.front() == '#') continue;
-    const int n = io::splitFields(line, ',', f, 11);
-    if (n != 8 && n != 10)
-      lines.fail("expected 8 or 10 columns (id,x0,y0,z0,x1,y1,z1,observations[,t_last,triangulation_angle]), got " +
+    const int n = io::splitFields(line, ',', f, 12);
+    if (n != 8 && n != 10 && n != 11)
+      lines.fail("expected 8, 10 or 11 columns "
+                 "(id,x0,y0,z0,x1,y1,z1,observations[,t_last,triangulation_angle[,endpoint_sigma]]), got " +
                  std::to_string(n));
     MapLine l;
     l.id = io::parseInt64Field(lines, f[0], "id");
@@ -241,10 +242,11 @@ std::vector<MapLine> readMapLinesCsv(const std::string& path) {
     const std::int64_t obs = io::parseInt64Field(lines, f[7], "observations");
     if (obs < 0) lines.fail("negative observation count");
     l.observations = static_cast<int>(obs);
-    if (n == 10) {
+    if (n >= 10) {
       l.t_last = io::parseInt64Field(lines, f[8], "t_last");
       l.angle_deg = io::parseDoubleField(lines, f[9], "triangulation_angle");
     }
+    if (n == 11) l.sigma_m = io::parseDoubleField(lines, f[10], "endpoint_sigma");
     out.push_back(l);
   }
   return out;

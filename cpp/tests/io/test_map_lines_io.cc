@@ -1,5 +1,5 @@
-// The line map on disk: csv round trip (ids, bit-exact coordinates, observation counts, last time and angle), the
-// older 8-column rows, line-numbered errors on malformed rows, and line maps as PLY edges.
+// The line map on disk: csv round trip (ids, bit-exact coordinates, observation counts, last time, angle and
+// endpoint sigma, infinite included), the older 8- and 10-column rows, line-numbered errors on malformed rows, and line maps as PLY edges.
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -28,6 +28,7 @@ std::vector<MapLine> randomLines(int n, unsigned seed) {
     l.observations = 2 + i;
     l.t_last = 1'403'715'273'262'142'976 + 50'000'000LL * i;
     l.angle_deg = 90.0 * std::abs(g(rng)) / 3.0;
+    l.sigma_m = i % 4 == 1 ? std::numeric_limits<double>::infinity() : 0.01 * std::abs(g(rng));
     lines.push_back(l);
   }
   // Values whose shortest text is long or special.
@@ -65,6 +66,7 @@ TEST(MapLinesIo, CsvRoundTripIsExact) {
     EXPECT_EQ(back[i].observations, lines[i].observations) << i;
     EXPECT_EQ(back[i].t_last, lines[i].t_last) << i;
     EXPECT_EQ(back[i].angle_deg, lines[i].angle_deg) << i;
+    EXPECT_EQ(back[i].sigma_m, lines[i].sigma_m) << i;
   }
   // Writing what was read gives the same file.
   writeMapLinesCsv((dir / "again.csv").string(), back);
@@ -90,6 +92,14 @@ TEST(MapLinesIo, OlderEightColumnRowsAndBlankLines) {
   EXPECT_EQ(back[1].id, -4);
   EXPECT_EQ(back[1].b, Vec3(1000, 0, 0));
   EXPECT_EQ(back[1].observations, 0);
+  EXPECT_TRUE(std::isinf(back[1].sigma_m));
+  // 10 columns (before the endpoint sigma): time and angle read, sigma unknown.
+  io_test::writeFile(path, "#id,x0,y0,z0,x1,y1,z1,observations,t_last,angle\n3,1,2,3,4,5,6,7,100,2.5\n");
+  const std::vector<MapLine> ten = readMapLinesCsv(path);
+  ASSERT_EQ(ten.size(), 1u);
+  EXPECT_EQ(ten[0].t_last, 100);
+  EXPECT_EQ(ten[0].angle_deg, 2.5);
+  EXPECT_TRUE(std::isinf(ten[0].sigma_m));
 }
 
 TEST(MapLinesIo, MalformedRowsNameTheFileAndLine) {
@@ -104,7 +114,8 @@ TEST(MapLinesIo, MalformedRowsNameTheFileAndLine) {
   } cases[] = {
       {"few.csv", header + good + "2,0,0,0,1,1\n", 3, "columns"},
       {"nine.csv", header + "2,0,0,0,1,1,1,3,100\n", 2, "columns"},
-      {"many.csv", header + good + good + "2,0,0,0,1,1,1,3,100,2.5,7\n", 4, "columns"},
+      {"many.csv", header + good + good + "2,0,0,0,1,1,1,3,100,2.5,0.1,7\n", 4, "columns"},
+      {"sigma.csv", header + "2,0,0,0,1,1,1,3,100,2.5,tight\n", 2, "tight"},
       {"id.csv", header + "x,0,0,0,1,1,1,3,100,2.5\n", 2, "'id'"},
       {"coord.csv", header + good + "2,0,abc,0,1,1,1,3,100,2.5\n", 3, "abc"},
       {"empty_field.csv", header + "2,0,0,,1,1,1,3,100,2.5\n", 2, "expected a number"},

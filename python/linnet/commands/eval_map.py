@@ -27,7 +27,8 @@ def _print_table(report: dict) -> None:
     table.add_column("figure", no_wrap=True)
     table.add_column("value", justify="right", no_wrap=True)
     table.add_row("map lines (total)", str(report["lines_total"]))
-    table.add_row(f"map lines evaluated (>= {report['min_observations']} observations)",
+    gate = "" if report.get("max_sigma_m") is None else f", endpoint sigma <= {report['max_sigma_m']:g} m"
+    table.add_row(f"map lines evaluated (>= {report['min_observations']} observations{gate})",
                   str(report["lines_evaluated"]))
     table.add_row("true lines associated", f"{report['true_lines_associated']} of {report['true_lines_total']}")
     table.add_row("median angle [deg]", _fmt(report["median_angle_deg"], ".3f"))
@@ -47,9 +48,12 @@ def _print_table(report: dict) -> None:
               help="Evaluate only map lines observed by at least this many frames.")
 @click.option("--within", "within_m", type=click.FloatRange(min=0.0), default=0.05, show_default=True,
               help="Distance bound (metres) of the 'both endpoints within' fraction.")
+@click.option("--max-sigma", "max_sigma_m", type=click.FloatRange(min=0.0), default=None,
+              help="Evaluate only map lines whose predicted endpoint standard deviation (map_lines.csv's "
+                   "endpoint_sigma) is at most this many metres.")
 @click.option("--json", "json_file", type=OUTPUT_FILE, default=None,
               help="Write the figures as JSON to this file.")
-def COMMAND(run_dir, dataset, min_observations, within_m, json_file):
+def COMMAND(run_dir, dataset, min_observations, within_m, max_sigma_m, json_file):
     """Score RUN_DIR/map_lines.csv (from `linnet run`) against DATASET/sim/lines.csv (from `linnet simulate`).
 
     The map is brought into the ground-truth frame by the SE3 alignment of RUN_DIR/trajectory.tum onto the dataset's
@@ -60,12 +64,14 @@ def COMMAND(run_dir, dataset, min_observations, within_m, json_file):
     from linnet import map_eval
 
     try:
-        report = map_eval.evaluate_run_map(run_dir, dataset, min_observations=min_observations, within_m=within_m)
+        report = map_eval.evaluate_run_map(run_dir, dataset, min_observations=min_observations, within_m=within_m,
+                                           max_sigma_m=max_sigma_m)
     except ev.InputError as e:
         raise EvalMapInputError(str(e)) from None
     _print_table(report)
     if report["lines_evaluated"] == 0:
-        click.echo(f"note: no map line has {min_observations} or more observations")
+        gate = "" if max_sigma_m is None else f" and an endpoint sigma of at most {max_sigma_m:g} m"
+        click.echo(f"note: no map line has {min_observations} or more observations{gate}")
     if json_file is not None:
         try:
             ev.write_json_file(json_file, report)

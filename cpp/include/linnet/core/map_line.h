@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 
 #include "linnet/core/types.h"
 
@@ -14,6 +15,7 @@ struct MapLine {
   int observations = 0;
   Timestamp t_last = 0;        // time of the last frame that observed it, ns (0: unknown)
   double angle_deg = 0.0;      // widest angle between two of its back-projection planes (triangulation quality), deg
+  double sigma_m = std::numeric_limits<double>::infinity();  // predicted endpoint std across the line, m (inf: unknown)
 };
 
 }  // namespace linnet

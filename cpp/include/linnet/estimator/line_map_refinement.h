@@ -40,4 +40,11 @@ bool backProjectSegment(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const
 /// starting from *L_W. Writes the result and returns true only if it lowers the mean endpoint distance.
 bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinementOptions& options, Vec6* L_W);
 
+/// Predicted standard deviation of a map segment's endpoints a, b off the true line, metres: the line's 4x4
+/// covariance from its sightings with the poses held (Gauss-Newton information J^T J of the endpoint distances, each
+/// with standard deviation pixel_sigma), propagated to each endpoint's displacement across the line; the larger of
+/// the two RMS displacements. Infinite when the sightings do not constrain all four degrees of freedom.
+double lineEndpointSigmaM(const Vec6& L_W, const std::vector<LineSighting>& sightings, const Vec3& a, const Vec3& b,
+                          double focal_px, double pixel_sigma);
+
 }  // namespace linnet
