@@ -49,13 +49,16 @@ def test_line_map_files_read_back(lowtex_runs):
 
     _, runs = lowtex_runs
     result, out = runs[True]
-    ids, segments, observations = read_map_lines(out / "map_lines.csv")
+    ids, segments, observations, sigmas = read_map_lines(out / "map_lines.csv", with_sigma=True)
     assert len(ids) >= 50
     assert np.all(observations >= 1)
     # The same segments as the Python API's map and as the PLY edges.
     m = result["map"]
     assert np.array_equal(m["line_ids"], ids)
     assert np.allclose(m["lines"], segments, rtol=0, atol=1e-12)
+    # Every line's predicted endpoint sigma, the same in both; most of them finite and under a metre.
+    assert np.array_equal(m["line_sigma_m"], sigmas)
+    assert np.all(sigmas > 0) and np.mean(np.isfinite(sigmas) & (sigmas < 1.0)) > 0.8
     ply = read_ply(out / "map.ply")
     assert len(ply.segments) == len(ids)
     assert len(ply.points) == len(m["points"])

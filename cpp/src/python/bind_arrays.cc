@@ -65,6 +65,7 @@ py::dict mapToDict(const std::vector<Vec3>& points, const std::vector<MapLine>& 
   py::array_t<double> segs({n, py::ssize_t(2), py::ssize_t(3)});
   py::array_t<std::int64_t> ids(n);
   py::array_t<int> obs(n);
+  py::array_t<double> sigma(n);
   for (py::ssize_t i = 0; i < n; ++i) {
     const MapLine& l = lines[static_cast<std::size_t>(i)];
     for (int k = 0; k < 3; ++k) {
@@ -73,12 +74,14 @@ py::dict mapToDict(const std::vector<Vec3>& points, const std::vector<MapLine>& 
     }
     ids.mutable_at(i) = l.id;
     obs.mutable_at(i) = l.observations;
+    sigma.mutable_at(i) = l.sigma_m;
   }
   py::dict d;
   d["points"] = pointsToArray(points);
   d["lines"] = segs;
   d["line_ids"] = ids;
   d["line_observations"] = obs;
+  d["line_sigma_m"] = sigma;
   return d;
 }
 

@@ -69,7 +69,8 @@ void bindRun(py::module_& m) {
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },
-           "dict: points (N x 3), lines (M x 2 x 3), line_ids (M), line_observations (M); W, metres")
+           "dict: points (N x 3), lines (M x 2 x 3), line_ids (M), line_observations (M), line_sigma_m (M, predicted "
+           "endpoint standard deviation, inf if unknown); W, metres")
       .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
       .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
            py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv (and odometry.tum with loop "
