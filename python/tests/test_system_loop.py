@@ -40,6 +40,37 @@ def test_loops_are_closed_and_reported(loop_run):
     assert s["reinitialisations"] == 0
 
 
+def test_loops_csv_holds_each_loops_measured_relative_pose(loop_run):
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    data, out, _ = loop_run
+    events = json.loads((out / "summary.json").read_text())["loop_closure"]["events"]
+    rows = np.genfromtxt(out / "loops.csv", delimiter=",", comments="#", ndmin=2)
+    assert rows.shape == (len(events), 12)
+    gt = np.genfromtxt(data / "mav0" / "state_groundtruth_estimate0" / "data.csv", delimiter=",", comments="#")
+
+    def pose(t_ns):
+        g = gt[np.argmin(np.abs(gt[:, 0] - t_ns))]
+        return Rotation.from_quat([g[5], g[6], g[7], g[4]]), g[1:4]
+
+    errors = []
+    for row, event in zip(rows, events):
+        assert abs(1e-9 * row[0] - event["t_new_s"]) < 1e-6 and abs(1e-9 * row[1] - event["t_old_s"]) < 1e-6
+        assert row[2] == event["inliers"]
+        assert np.allclose(row[5:8], np.array(event["T_old_new"])[:3, 3], rtol=0, atol=1e-12)
+        R_old, p_old = pose(row[1])
+        R_new, p_new = pose(row[0])
+        true_p = R_old.inv().apply(p_new - p_old)
+        true_R = R_old.inv() * R_new
+        errors.append(np.linalg.norm(row[5:8] - true_p))
+        # The weakest loops here (15-20 inliers) are off by up to about 11 cm and 2 deg when written; a frame
+        # convention error would be off by the loop's whole baseline (0.1-1 m) or more.
+        assert errors[-1] < 0.15, (row, true_p)
+        assert (true_R.inv() * Rotation.from_quat(row[8:12])).magnitude() < np.radians(3.0)
+    assert np.sqrt(np.mean(np.square(errors))) < 0.08, errors
+
+
 def test_loop_corrected_trajectory_stays_accurate(loop_run):
     from linnet import evaluation as ev
 

@@ -208,7 +208,8 @@ MapGeometry readPly(const std::string& path) {
 
 void writeMapLinesCsv(const std::string& path, const std::vector<MapLine>& lines) {
   std::string text =
-      "#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations,t_last [ns],triangulation_angle [deg],endpoint_sigma [m]\n";
+      "#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations,t_last [ns],triangulation_angle [deg],"
+      "endpoint_sigma [m]\n";
   text.reserve(text.size() + lines.size() * 128);
   for (const MapLine& l : lines) {
     text += std::to_string(l.id);

@@ -125,6 +125,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
   mo.min_inliers = options_.min_inliers;
   mo.ransac_px = options_.ransac_px;
   mo.focal_px = cam0_.fx();
+  mo.two_way = options_.two_way_pnp;
   for (const auto& [distance, j] : candidates) {
     const PlaceMatch m = matchPlaces(keyframes_[j].place, now.place, mo);
     if (!m.ok) continue;
@@ -153,6 +154,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
     e.t_new = now.t;
     e.t_old = keyframes_[j].t;
     e.inliers = m.inliers;
+    e.T_old_new = T_Bj_Bk;
     const Pose after = graph_.pose(k);
     e.correction_m = (after.p - P_new.p).norm();
     e.correction_yaw_deg = std::abs(wrapPi(graph_.heading(k, after.R()) - graph_.heading(k, P_new.R()))) / kDegToRad;

@@ -120,15 +120,13 @@ bool pnpCovariance(const std::vector<cv::Point3d>& object, const std::vector<cv:
   return covariance->allFinite();
 }
 
-// 3D points of `a` (its camera frame) matched to 2D corners of `b`; on success T_Cb_Ca.
-PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options) {
-  PlaceMatch out;
-  if (static_cast<int>(a.p_C.size()) < options.min_inliers || b.descriptors_2d.rows < 2) return out;
+// Descriptor matches of a's 3D corners to b's corners (ratio test, one 3D corner per 2D corner): a's points in its
+// camera frame and b's normalised coordinates.
+void matchOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options,
+                 std::vector<cv::Point3d>* object, std::vector<cv::Point2d>* image) {
   cv::BFMatcher matcher(cv::NORM_HAMMING, false);
   std::vector<std::vector<cv::DMatch>> knn;
   matcher.knnMatch(a.descriptors_3d, b.descriptors_2d, knn, 2);
-  std::vector<cv::Point3d> object;
-  std::vector<cv::Point2d> image;
   std::vector<int> used(static_cast<std::size_t>(b.descriptors_2d.rows), 0);
   for (const std::vector<cv::DMatch>& m : knn) {
     if (m.empty() || m[0].distance > options.max_hamming) continue;
@@ -136,11 +134,88 @@ PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const Pla
     if (used[static_cast<std::size_t>(m[0].trainIdx)]++) continue;  // one 3D point per corner
     const Vec3& X = a.p_C[static_cast<std::size_t>(m[0].queryIdx)];
     const Vec2& uv = b.uv[static_cast<std::size_t>(m[0].trainIdx)];
-    object.emplace_back(X.x(), X.y(), X.z());
-    image.emplace_back(uv.x(), uv.y());
+    object->emplace_back(X.x(), X.y(), X.z());
+    image->emplace_back(uv.x(), uv.y());
   }
+}
+
+struct OneWay {
+  PlaceMatch match;                 // T_Cold_Cnew holds T_Cb_Ca here
+  std::vector<cv::Point3d> object;  // the PnP's inliers: a's points
+  std::vector<cv::Point2d> image;   // and b's normalised corners
+};
+
+// Joint Gauss-Newton refinement of T_Cb_Ca = (R, t) on a's points seen in b (x_b = R X_a + t) and b's points seen in
+// a (x_a = R^T (X_b - t)), perturbation R <- exp(dtheta) R, t <- t + dt; Huber-weighted at `huber` (normalised
+// units). Writes the covariance as pnpCovariance does (both sets' residual variance). False if degenerate.
+bool refineTwoWay(const std::vector<cv::Point3d>& obj_a, const std::vector<cv::Point2d>& img_b,
+                  const std::vector<cv::Point3d>& obj_b, const std::vector<cv::Point2d>& img_a, double huber,
+                  Mat3* R, Vec3* t, Eigen::Matrix<double, 6, 6>* covariance) {
+  constexpr int kIterations = 8;
+  const std::size_t n = obj_a.size() + obj_b.size();
+  if (n < 4) return false;
+  Mat3 Rk = *R;
+  Vec3 tk = *t;
+  Eigen::Matrix<double, 6, 6> H;
+  double sum_sq = 0.0;
+  for (int it = 0; it <= kIterations; ++it) {
+    H.setZero();
+    Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+    sum_sq = 0.0;
+    const auto add = [&](const Vec3& p, const Vec2& uv, const Eigen::Matrix<double, 3, 6>& dp) {
+      if (!(p.z() > 1e-9)) return false;
+      const Vec2 r = p.head<2>() / p.z() - uv;
+      Eigen::Matrix<double, 2, 3> du_dp;
+      du_dp << 1.0 / p.z(), 0.0, -p.x() / (p.z() * p.z()), 0.0, 1.0 / p.z(), -p.y() / (p.z() * p.z());
+      const Eigen::Matrix<double, 2, 6> J = du_dp * dp;
+      const double e = r.norm();
+      const double w = e <= huber ? 1.0 : huber / e;
+      sum_sq += r.squaredNorm();
+      H.noalias() += w * J.transpose() * J;
+      g.noalias() += w * J.transpose() * r;
+      return true;
+    };
+    for (std::size_t i = 0; i < obj_a.size(); ++i) {
+      const Vec3 RX = Rk * Vec3(obj_a[i].x, obj_a[i].y, obj_a[i].z);
+      Eigen::Matrix<double, 3, 6> dp;
+      dp << -skew(RX), Mat3::Identity();
+      if (!add(RX + tk, Vec2(img_b[i].x, img_b[i].y), dp)) return false;
+    }
+    for (std::size_t i = 0; i < obj_b.size(); ++i) {
+      const Vec3 d = Vec3(obj_b[i].x, obj_b[i].y, obj_b[i].z) - tk;
+      Eigen::Matrix<double, 3, 6> dp;
+      dp << Rk.transpose() * skew(d), -Rk.transpose();
+      if (!add(Rk.transpose() * d, Vec2(img_a[i].x, img_a[i].y), dp)) return false;
+    }
+    if (it == kIterations) break;
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
+    if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
+    const Eigen::Matrix<double, 6, 1> delta = -ldlt.solve(g);
+    if (!delta.allFinite()) return false;
+    Rk = expSO3(Vec3(delta.head<3>())).toRotationMatrix() * Rk;
+    tk += delta.tail<3>();
+    if (delta.norm() < 1e-10) break;
+  }
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
+  const double variance = sum_sq / static_cast<double>(std::max<std::size_t>(1, 2 * n - 6));
+  *covariance = variance * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+  if (!covariance->allFinite() || !Rk.allFinite() || !tk.allFinite()) return false;
+  *R = Rk;
+  *t = tk;
+  return true;
+}
+
+// 3D points of `a` (its camera frame) matched to 2D corners of `b`; on success T_Cb_Ca.
+OneWay solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options) {
+  OneWay result;
+  PlaceMatch& out = result.match;
+  if (static_cast<int>(a.p_C.size()) < options.min_inliers || b.descriptors_2d.rows < 2) return result;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  matchOneWay(a, b, options, &object, &image);
   out.matches = static_cast<int>(object.size());
-  if (out.matches < options.min_inliers) return out;
+  if (out.matches < options.min_inliers) return result;
   cv::Mat rvec, tvec;
   std::vector<int> inliers;
   const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
@@ -148,9 +223,9 @@ PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const Pla
                                          static_cast<float>(options.ransac_px / options.focal_px), 0.99, inliers,
                                          cv::SOLVEPNP_EPNP);
   out.inliers = static_cast<int>(inliers.size());
-  if (!solved || out.inliers < options.min_inliers) return out;
-  std::vector<cv::Point3d> obj_in;
-  std::vector<cv::Point2d> img_in;
+  if (!solved || out.inliers < options.min_inliers) return result;
+  std::vector<cv::Point3d>& obj_in = result.object;
+  std::vector<cv::Point2d>& img_in = result.image;
   for (int k : inliers) {
     obj_in.push_back(object[static_cast<std::size_t>(k)]);
     img_in.push_back(image[static_cast<std::size_t>(k)]);
@@ -162,19 +237,56 @@ PlaceMatch solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const Pla
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) R(r, c) = Rcv.at<double>(r, c);
   const Vec3 t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
-  if (!R.allFinite() || !t.allFinite()) return out;
-  if (!pnpCovariance(obj_in, img_in, R, t, &out.covariance)) return out;
+  if (!R.allFinite() || !t.allFinite()) return result;
+  if (!pnpCovariance(obj_in, img_in, R, t, &out.covariance)) return result;
   out.T_Cold_Cnew = Pose(R, t);  // x_b = R x_a + t: T_Cb_Ca
   out.ok = true;
-  return out;
+  return result;
+}
+
+// With options.two_way: b's 3D corners matched to a's corners that agree with T_Cb_Ca within ransac_px, and the
+// relative pose refined on both sets together (refineTwoWay). Left as it is if too few agree or the refinement fails.
+void refineOnBothKeyframes(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options,
+                           OneWay* one) {
+  PlaceMatch& m = one->match;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  if (b.p_C.empty() || a.descriptors_2d.rows < 2) return;
+  matchOneWay(b, a, options, &object, &image);
+  const Mat3 R = m.T_Cold_Cnew.R();
+  const Vec3 t = m.T_Cold_Cnew.p;
+  const double gate = options.ransac_px / options.focal_px;
+  std::vector<cv::Point3d> obj_b;
+  std::vector<cv::Point2d> img_a;
+  for (std::size_t i = 0; i < object.size(); ++i) {
+    const Vec3 p = R.transpose() * (Vec3(object[i].x, object[i].y, object[i].z) - t);  // in a
+    if (!(p.z() > 0.0)) continue;
+    if ((p.head<2>() / p.z() - Vec2(image[i].x, image[i].y)).norm() > gate) continue;
+    obj_b.push_back(object[i]);
+    img_a.push_back(image[i]);
+  }
+  if (static_cast<int>(obj_b.size()) < options.min_inliers / 2) return;
+  Mat3 R2 = R;
+  Vec3 t2 = t;
+  Eigen::Matrix<double, 6, 6> covariance;
+  if (!refineTwoWay(one->object, one->image, obj_b, img_a, gate, &R2, &t2, &covariance)) return;
+  m.T_Cold_Cnew = Pose(Quat(R2).normalized(), t2);
+  m.covariance = covariance;
+  m.reverse_inliers = static_cast<int>(obj_b.size());
 }
 
 }  // namespace
 
 PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options) {
-  PlaceMatch m = solveOneWay(new_kf, old_kf, options);  // T_Cold_Cnew
-  if (m.ok) return m;
-  PlaceMatch r = solveOneWay(old_kf, new_kf, options);   // T_Cnew_Cold
+  OneWay forward = solveOneWay(new_kf, old_kf, options);  // T_Cold_Cnew
+  if (forward.match.ok) {
+    if (options.two_way) refineOnBothKeyframes(new_kf, old_kf, options, &forward);
+    return forward.match;
+  }
+  OneWay backward = solveOneWay(old_kf, new_kf, options);  // T_Cnew_Cold
+  if (backward.match.ok && options.two_way) refineOnBothKeyframes(old_kf, new_kf, options, &backward);
+  const PlaceMatch& m = forward.match;
+  PlaceMatch r = backward.match;
   if (!r.ok) {
     r.matches = std::max(r.matches, m.matches);
     r.inliers = std::max(r.inliers, m.inliers);

@@ -8,6 +8,7 @@
 
 #include "linnet/core/cpu_clock.h"
 #include "linnet/core/error.h"
+#include "linnet/io/config_yaml.h"
 #include "linnet/io/euroc_dataset.h"
 #include "linnet/io/map_io.h"
 #include "linnet/io/trajectory_io.h"
@@ -270,6 +271,26 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
   return run.finish();
 }
 
+namespace {
+
+// loops.csv: one row per loop closed, with the measured relative pose of the two keyframes' bodies.
+void writeLoopsCsv(const std::string& path, const std::vector<LoopEvent>& loops) {
+  std::string text =
+      "#t_new [ns],t_old [ns],inliers,correction [m],correction_yaw [deg],x [m],y [m],z [m],qx,qy,qz,qw "
+      "(T_old_new: the new keyframe's body in the old one's, as measured)\n";
+  for (const LoopEvent& e : loops) {
+    const Quat q = e.T_old_new.q.normalized();
+    text += std::to_string(e.t_new) + "," + std::to_string(e.t_old) + "," + std::to_string(e.inliers);
+    for (const double v : {e.correction_m, e.correction_yaw_deg, e.T_old_new.p.x(), e.T_old_new.p.y(),
+                           e.T_old_new.p.z(), q.x(), q.y(), q.z(), q.w()})
+      text.append(",").append(io::formatDouble(v));
+    text += "\n";
+  }
+  writeTextFile(path, text);
+}
+
+}  // namespace
+
 void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -298,6 +319,7 @@ void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {
   for (const MapLine& l : summary.map_lines) map.segments.push_back(Segment3{l.a, l.b});
   writePly((fs::path(out_dir) / "map.ply").string(), map);
   writeMapLinesCsv((fs::path(out_dir) / "map_lines.csv").string(), summary.map_lines);
+  if (summary.loop_enabled) writeLoopsCsv((fs::path(out_dir) / "loops.csv").string(), summary.loops);
 
   const std::string timing_path = (fs::path(out_dir) / "timing.csv").string();
   std::FILE* f = std::fopen(timing_path.c_str(), "w");

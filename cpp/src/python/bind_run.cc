@@ -61,11 +61,13 @@ void bindRun(py::module_& m) {
               d["inliers"] = e.inliers;
               d["correction_m"] = e.correction_m;
               d["correction_yaw_deg"] = e.correction_yaw_deg;
+              d["T_old_new"] = Eigen::Matrix4d(e.T_old_new.matrix());
               out.append(d);
             }
             return out;
           },
-          "loops closed: list of dicts (t_new_ns, t_old_ns, inliers, correction_m, correction_yaw_deg)")
+          "loops closed: list of dicts (t_new_ns, t_old_ns, inliers, correction_m, correction_yaw_deg, T_old_new: the "
+          "measured pose of the new keyframe's body in the old one's, 4 x 4)")
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },
@@ -73,7 +75,8 @@ void bindRun(py::module_& m) {
            "endpoint standard deviation, inf if unknown); W, metres")
       .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
       .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
-           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv (and odometry.tum with loop "
+           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv (and odometry.tum and loops.csv "
+           "with loop "
            "closure) into out_dir");
 
   py::class_<StreamRun>(m, "StreamRun",

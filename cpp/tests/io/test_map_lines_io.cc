@@ -1,5 +1,6 @@
 // The line map on disk: csv round trip (ids, bit-exact coordinates, observation counts, last time, angle and
-// endpoint sigma, infinite included), the older 8- and 10-column rows, line-numbered errors on malformed rows, and line maps as PLY edges.
+// endpoint sigma, infinite included), the older 8- and 10-column rows, line-numbered errors on malformed rows, and
+// line maps as PLY edges.
 #include <cmath>
 #include <cstdint>
 #include <limits>

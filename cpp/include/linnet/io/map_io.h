@@ -41,9 +41,10 @@ void writeObj(const std::string& path, const MapGeometry& map, const Rgb& defaul
 void writeMap(const std::string& path, const MapGeometry& map);
 
 /// Writes the line map as csv: a header `#id,x0 [m],y0 [m],z0 [m],x1 [m],y1 [m],z1 [m],observations,t_last [ns],
-/// triangulation_angle [deg]`, then one line per map line (W, metres). InputError if the file cannot be written.
+/// triangulation_angle [deg],endpoint_sigma [m]`, then one line per map line (W, metres). InputError if the file
+/// cannot be written.
 void writeMapLinesCsv(const std::string& path, const std::vector<MapLine>& lines);
-/// Reads a file written by writeMapLinesCsv (8 columns without the last two are accepted). InputError
+/// Reads a file written by writeMapLinesCsv (older files with 8 or 10 columns are accepted). InputError
 /// "<file>:<line>: ..." on bad content.
 std::vector<MapLine> readMapLinesCsv(const std::string& path);
 

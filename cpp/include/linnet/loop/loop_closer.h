@@ -33,6 +33,7 @@ struct LoopEvent {
   int inliers = 0;
   double correction_m = 0.0;       // position change of the new keyframe by the pose-graph solve, m
   double correction_yaw_deg = 0.0; // its yaw change, deg
+  Pose T_old_new;                  // the loop's measured relative pose: new keyframe's body in the old one's
 };
 
 class LoopCloser {

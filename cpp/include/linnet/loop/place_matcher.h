@@ -46,12 +46,16 @@ struct PlaceMatchOptions {
   int min_inliers = 25;
   double ransac_px = 2.0;    // pixels
   double focal_px = 458.0;   // converts ransac_px to normalised units
+  // Refine the one-way PnP on both keyframes' 3D corners: the first's seen in the second and the second's in the
+  // first, jointly, so that neither keyframe's landmark errors alone set the relative pose.
+  bool two_way = false;
 };
 
 struct PlaceMatch {
   bool ok = false;
   int matches = 0;           // descriptor matches that passed the ratio test
   int inliers = 0;           // PnP RANSAC inliers
+  int reverse_inliers = 0;   // with two_way: the other keyframe's 3D corners that agree with the PnP and were used
   Pose T_Cold_Cnew;          // the new keyframe's cam0 in the old one's cam0
   // Covariance of T_Cold_Cnew for the perturbation R <- exp(dtheta) R, t <- t + dt (order dtheta, dt; rad, m): the
   // PnP's Gauss-Newton inverse scaled by its inliers' residual variance (which holds the old landmarks' errors too).
