@@ -26,7 +26,7 @@ struct LoopOptions {
                                        // mean APE 0.0197 -> 0.0169 m, V1_02 lowtex 0.0375 -> 0.0240 m (1 loop), V2_02
                                        // lowtex 0.0323 -> 0.0260 m; textured replays close about twice as many loops
   double ransac_px = 2.0;              // PnP RANSAC reprojection threshold, pixels
-  bool two_way_pnp = false;            // refine the PnP on both keyframes' 3D corners (each seen in the other)
+  bool two_way_pnp = true;             // refine the PnP on both keyframes' 3D corners (each seen in the other)
   double max_yaw_change_deg = 30.0;    // the loop's yaw correction must be smaller, deg
   // Pose graph (pose_graph.h): x, y, z and yaw per keyframe; roll and pitch stay the odometry's (IMU-observable).
   int sequential_edges = 4;            // odometry edges from each keyframe to the previous ones
