@@ -172,7 +172,8 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
             "largest_correction_m": max((e["correction_m"] for e in loops), default=0.0),
             "events": [{"t_new_s": 1e-9 * e["t_new_ns"], "t_old_s": 1e-9 * e["t_old_ns"], "inliers": e["inliers"],
                         "correction_m": e["correction_m"], "correction_yaw_deg": e["correction_yaw_deg"],
-                        "T_old_new": e["T_old_new"].tolist()}
+                        "T_old_new": e["T_old_new"].tolist(), "sigma_m": e["sigma_m"],
+                        "sigma_yaw_deg": e["sigma_yaw_deg"]}
                        for e in loops]}
     gt = find_ground_truth(dataset) if dataset is not None else None
     traj = run.trajectory(True)

@@ -47,7 +47,7 @@ def test_loops_csv_holds_each_loops_measured_relative_pose(loop_run):
     data, out, _ = loop_run
     events = json.loads((out / "summary.json").read_text())["loop_closure"]["events"]
     rows = np.genfromtxt(out / "loops.csv", delimiter=",", comments="#", ndmin=2)
-    assert rows.shape == (len(events), 12)
+    assert rows.shape == (len(events), 14)
     gt = np.genfromtxt(data / "mav0" / "state_groundtruth_estimate0" / "data.csv", delimiter=",", comments="#")
 
     def pose(t_ns):
@@ -59,6 +59,8 @@ def test_loops_csv_holds_each_loops_measured_relative_pose(loop_run):
         assert abs(1e-9 * row[0] - event["t_new_s"]) < 1e-6 and abs(1e-9 * row[1] - event["t_old_s"]) < 1e-6
         assert row[2] == event["inliers"]
         assert np.allclose(row[5:8], np.array(event["T_old_new"])[:3, 3], rtol=0, atol=1e-12)
+        # The edge's sigmas: at least the configured floor (1 cm, 0.2 deg), as in summary.json.
+        assert row[12] == event["sigma_m"] and row[12] >= 0.01 and row[13] == event["sigma_yaw_deg"] >= 0.2
         R_old, p_old = pose(row[1])
         R_new, p_new = pose(row[0])
         true_p = R_old.inv().apply(p_new - p_old)

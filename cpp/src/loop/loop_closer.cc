@@ -155,6 +155,8 @@ bool LoopCloser::tryLoop(std::size_t k) {
     e.t_old = keyframes_[j].t;
     e.inliers = m.inliers;
     e.T_old_new = T_Bj_Bk;
+    e.sigma_m = sigma_t;
+    e.sigma_yaw_deg = sigma_yaw / kDegToRad;
     const Pose after = graph_.pose(k);
     e.correction_m = (after.p - P_new.p).norm();
     e.correction_yaw_deg = std::abs(wrapPi(graph_.heading(k, after.R()) - graph_.heading(k, P_new.R()))) / kDegToRad;

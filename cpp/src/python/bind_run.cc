@@ -62,12 +62,15 @@ void bindRun(py::module_& m) {
               d["correction_m"] = e.correction_m;
               d["correction_yaw_deg"] = e.correction_yaw_deg;
               d["T_old_new"] = Eigen::Matrix4d(e.T_old_new.matrix());
+              d["sigma_m"] = e.sigma_m;
+              d["sigma_yaw_deg"] = e.sigma_yaw_deg;
               out.append(d);
             }
             return out;
           },
           "loops closed: list of dicts (t_new_ns, t_old_ns, inliers, correction_m, correction_yaw_deg, T_old_new: the "
-          "measured pose of the new keyframe's body in the old one's, 4 x 4)")
+          "measured pose of the new keyframe's body in the old one's, 4 x 4, sigma_m, sigma_yaw_deg: its pose-graph "
+          "edge's sigmas)")
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },

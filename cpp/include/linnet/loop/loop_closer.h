@@ -34,6 +34,8 @@ struct LoopEvent {
   double correction_m = 0.0;       // position change of the new keyframe by the pose-graph solve, m
   double correction_yaw_deg = 0.0; // its yaw change, deg
   Pose T_old_new;                  // the loop's measured relative pose: new keyframe's body in the old one's
+  double sigma_m = 0.0;            // the loop edge's position sigma in the pose graph, m
+  double sigma_yaw_deg = 0.0;      // and its yaw sigma, deg
 };
 
 class LoopCloser {
