@@ -91,6 +91,13 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
 
 namespace {
 
+// d (x / z, y / z) / d p, 2 x 3.
+Eigen::Matrix<double, 2, 3> projectionJacobian(const Vec3& p) {
+  Eigen::Matrix<double, 2, 3> du_dp;
+  du_dp << 1.0 / p.z(), 0.0, -p.x() / (p.z() * p.z()), 0.0, 1.0 / p.z(), -p.y() / (p.z() * p.z());
+  return du_dp;
+}
+
 // Covariance of the pose (R, t) mapping `object` onto the normalised `image` points (x_b = R x_a + t), for the
 // perturbation R <- exp(dtheta) R, t <- t + dt: sigma^2 (J^T J)^-1 with sigma^2 the residuals' variance (2 n - 6
 // degrees of freedom). False when the system is singular or there are too few points.
@@ -106,11 +113,9 @@ bool pnpCovariance(const std::vector<cv::Point3d>& object, const std::vector<cv:
     if (!(p.z() > 1e-9)) return false;
     const Vec2 r = p.head<2>() / p.z() - Vec2(image[i].x, image[i].y);
     sum_sq += r.squaredNorm();
-    Eigen::Matrix<double, 2, 3> du_dp;
-    du_dp << 1.0 / p.z(), 0.0, -p.x() / (p.z() * p.z()), 0.0, 1.0 / p.z(), -p.y() / (p.z() * p.z());
     Eigen::Matrix<double, 3, 6> dp;
     dp << -skew(RX), Mat3::Identity();  // d p / d(dtheta, dt)
-    const Eigen::Matrix<double, 2, 6> J = du_dp * dp;
+    const Eigen::Matrix<double, 2, 6> J = projectionJacobian(p) * dp;
     H.noalias() += J.transpose() * J;
   }
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
@@ -165,9 +170,7 @@ bool refineTwoWay(const std::vector<cv::Point3d>& obj_a, const std::vector<cv::P
     const auto add = [&](const Vec3& p, const Vec2& uv, const Eigen::Matrix<double, 3, 6>& dp) {
       if (!(p.z() > 1e-9)) return false;
       const Vec2 r = p.head<2>() / p.z() - uv;
-      Eigen::Matrix<double, 2, 3> du_dp;
-      du_dp << 1.0 / p.z(), 0.0, -p.x() / (p.z() * p.z()), 0.0, 1.0 / p.z(), -p.y() / (p.z() * p.z());
-      const Eigen::Matrix<double, 2, 6> J = du_dp * dp;
+      const Eigen::Matrix<double, 2, 6> J = projectionJacobian(p) * dp;
       const double e = r.norm();
       const double w = e <= huber ? 1.0 : huber / e;
       sum_sq += r.squaredNorm();

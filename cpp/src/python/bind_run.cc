@@ -78,9 +78,9 @@ void bindRun(py::module_& m) {
            "endpoint standard deviation, inf if unknown); W, metres")
       .def("results", [](const RunSummary& r) { return r.results; }, "list of FrameResult, one per processed frame")
       .def("write", [](const RunSummary& r, const std::string& out_dir) { writeRunOutputs(r, out_dir); },
-           py::arg("out_dir"), "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv (and odometry.tum and loops.csv "
-           "with loop "
-           "closure) into out_dir");
+           py::arg("out_dir"),
+           "trajectory.tum, trajectory.csv, timing.csv, map.ply, map_lines.csv (and odometry.tum and loops.csv with "
+           "loop closure) into out_dir");
 
   py::class_<StreamRun>(m, "StreamRun",
                         "A run fed sample by sample in time order (ROS bags, drivers): add_imu / add_frame, then "
