@@ -5,19 +5,9 @@
 #include <limits>
 
 #include "linnet/estimator/manifolds.h"
+#include "linnet/geometry/projection.h"
 
 namespace linnet {
-namespace {
-
-/// d (sqrt_info * xy/z) / d p, 2 x 3.
-Eigen::Matrix<double, 2, 3> projectionJacobian(const Vec3& p, double sqrt_info) {
-  const double iz = 1.0 / p.z();
-  Eigen::Matrix<double, 2, 3> D;
-  D << iz, 0.0, -p.x() * iz * iz, 0.0, iz, -p.y() * iz * iz;
-  return sqrt_info * D;
-}
-
-}  // namespace
 
 PointReprojectionFactor::PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target,
                                                  const Pose& T_B_Chost, const Pose& T_B_Ctarget,
@@ -49,7 +39,8 @@ bool PointReprojectionFactor::evaluateTangent(const Pose& T_W_Bi, const Pose& T_
   //   p_W  = R_i Exp(dth_i) p_Bi + p_i        -> dp_W/dp_i = I, dp_W/dth_i = -R_i [p_Bi]x
   //   p_Bj = Exp(-dth_j) R_j^T (p_W - p_j)    -> dp_Bj/dp_j = -R_j^T, dp_Bj/dth_j = [p_Bj]x
   //   p_Ch = f / rho                          -> dp_Ch/drho = -f / rho^2
-  const Eigen::Matrix<double, 2, 3> A = projectionJacobian(p_Ct, sqrt_info_) * R_Ct_B;
+  const Eigen::Matrix<double, 2, 3> D = sqrt_info_ * projectionJacobian(p_Ct);
+  const Eigen::Matrix<double, 2, 3> A = D * R_Ct_B;
   const Eigen::Matrix<double, 2, 3> A_W = A * R_Bj_W;  // dr/dp_W
   if (J_pose_i != nullptr) {
     J_pose_i->leftCols<3>() = A_W;
@@ -105,7 +96,8 @@ bool PointStereoFactor::Evaluate(double const* const* parameters, double* residu
   residuals[1] = r.y();
   if (jacobians != nullptr && jacobians[0] != nullptr) {
     // dr/drho = D * R_C1_C0 * (-f / rho^2)
-    const Vec2 J = projectionJacobian(p_C1, sqrt_info_) * T_C1_C0_.R() * (-f / (inv_depth * inv_depth));
+    const Eigen::Matrix<double, 2, 3> D = sqrt_info_ * projectionJacobian(p_C1);
+    const Vec2 J = D * T_C1_C0_.R() * (-f / (inv_depth * inv_depth));
     jacobians[0][0] = J.x();
     jacobians[0][1] = J.y();
   }
@@ -131,7 +123,7 @@ bool PointStereoCorrectedFactor::evaluateTangentSpace(double const* const* param
   residuals[0] = r.x();
   residuals[1] = r.y();
   if (jacobians == nullptr) return true;
-  const Eigen::Matrix<double, 2, 3> D = projectionJacobian(p, sqrt_info_);
+  const Eigen::Matrix<double, 2, 3> D = sqrt_info_ * projectionJacobian(p);
   if (jacobians[0] != nullptr) {
     const Vec2 J = D * R_S_t * S0_T_C1_C0_.R() * (-f / (inv_depth * inv_depth));
     jacobians[0][0] = J.x();

@@ -9,6 +9,7 @@
 #include <opencv2/features2d.hpp>
 
 #include "linnet/camera/camera_model.h"
+#include "linnet/geometry/projection.h"
 #include "linnet/geometry/triangulation.h"
 
 namespace linnet {
@@ -90,13 +91,6 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
 }
 
 namespace {
-
-// d (x / z, y / z) / d p, 2 x 3.
-Eigen::Matrix<double, 2, 3> projectionJacobian(const Vec3& p) {
-  Eigen::Matrix<double, 2, 3> du_dp;
-  du_dp << 1.0 / p.z(), 0.0, -p.x() / (p.z() * p.z()), 0.0, 1.0 / p.z(), -p.y() / (p.z() * p.z());
-  return du_dp;
-}
 
 // Covariance of the pose (R, t) mapping `object` onto the normalised `image` points (x_b = R x_a + t), for the
 // perturbation R <- exp(dtheta) R, t <- t + dt: sigma^2 (J^T J)^-1 with sigma^2 the residuals' variance (2 n - 6
