@@ -92,6 +92,17 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
 
 namespace {
 
+// sigma^2 H^-1 for the information H = J^T J of n normalised image residuals whose squares sum to sum_sq, sigma^2
+// their variance (2 n - 6 degrees of freedom). False when H is singular.
+bool covarianceFromInformation(const Eigen::Matrix<double, 6, 6>& H, double sum_sq, std::size_t n,
+                               Eigen::Matrix<double, 6, 6>* covariance) {
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
+  const double variance = sum_sq / static_cast<double>(std::max<std::size_t>(1, 2 * n - 6));
+  *covariance = variance * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+  return covariance->allFinite();
+}
+
 // Covariance of the pose (R, t) mapping `object` onto the normalised `image` points (x_b = R x_a + t), for the
 // perturbation R <- exp(dtheta) R, t <- t + dt: sigma^2 (J^T J)^-1 with sigma^2 the residuals' variance (2 n - 6
 // degrees of freedom). False when the system is singular or there are too few points.
@@ -112,11 +123,7 @@ bool pnpCovariance(const std::vector<cv::Point3d>& object, const std::vector<cv:
     const Eigen::Matrix<double, 2, 6> J = projectionJacobian(p) * dp;
     H.noalias() += J.transpose() * J;
   }
-  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
-  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
-  const double variance = sum_sq / std::max(1, 2 * n - 6);
-  *covariance = variance * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
-  return covariance->allFinite();
+  return covarianceFromInformation(H, sum_sq, static_cast<std::size_t>(n), covariance);
 }
 
 // Descriptor matches of a's 3D corners to b's corners (ratio test, one 3D corner per 2D corner): a's points in its
@@ -193,11 +200,7 @@ bool refineTwoWay(const std::vector<cv::Point3d>& obj_a, const std::vector<cv::P
     tk += delta.tail<3>();
     if (delta.norm() < 1e-10) break;
   }
-  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
-  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
-  const double variance = sum_sq / static_cast<double>(std::max<std::size_t>(1, 2 * n - 6));
-  *covariance = variance * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
-  if (!covariance->allFinite() || !Rk.allFinite() || !tk.allFinite()) return false;
+  if (!covarianceFromInformation(H, sum_sq, n, covariance) || !Rk.allFinite() || !tk.allFinite()) return false;
   *R = Rk;
   *t = tk;
   return true;
