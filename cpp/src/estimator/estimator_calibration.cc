@@ -4,6 +4,8 @@
 // it enters each new window with a prior at its current value (sigmas in options_.extrinsics / time_offset) and is
 // never marginalised, so what the window learns about it stays in the marginalisation priors.
 #include <algorithm>
+#include <array>
+#include <span>
 
 #include "estimator_core.h"
 #include "linnet/estimator/factors/point_factors.h"
@@ -50,29 +52,38 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
       r.blocks.push_back(stereo_.data());
       r.keys.push_back(kStereoBlockKey);
     }
-    std::vector<int> poses;  // visual residuals: their frame keys are pose blocks
-    for (std::size_t b = 0; b < r.keys.size(); ++b)
-      if (r.keys[b] >= 0 && r.keys[b] % 4 == static_cast<int>(BlockKind::kPose)) poses.push_back(static_cast<int>(b));
-    if (poses.empty()) continue;  // the same-frame stereo residual depends on neither
+    // Visual residuals: their frame keys are pose blocks (one or two; fixed arrays, as this runs per residual).
+    std::array<int, PoseWrappedFactor::kMaxPoses> poses{};
+    std::array<std::int64_t, PoseWrappedFactor::kMaxPoses> frames{};
+    std::size_t n_poses = 0;
+    for (std::size_t b = 0; b < r.keys.size(); ++b) {
+      if (r.keys[b] < 0 || r.keys[b] % 4 != static_cast<int>(BlockKind::kPose)) continue;
+      if (n_poses == poses.size()) throw UsageError("correctCalibration: a visual residual with more than 2 poses");
+      poses[n_poses] = static_cast<int>(b);
+      frames[n_poses++] = frameOf(r, static_cast<int>(b));
+    }
+    if (n_poses == 0) continue;  // the same-frame stereo residual depends on neither
+    const std::span<const int> pose_span(poses.data(), n_poses);
+    const std::span<const std::int64_t> frame_span(frames.data(), n_poses);
     // The rig correction applies to the time-shifted body pose, so it is the inner wrapper.
-    std::vector<std::int64_t> frames;
-    for (int b : poses) frames.push_back(frameOf(r, b));
     if (rig) {
-      auto wrapped = std::make_shared<RigCorrectedFactor>(r.cost, poses, rig_applied_);
-      wrapped->useMemo(rig_memo, std::vector<std::int64_t>(poses.size(), 0));
+      auto wrapped = std::make_shared<RigCorrectedFactor>(r.cost, pose_span, rig_applied_);
+      const std::array<std::int64_t, PoseWrappedFactor::kMaxPoses> common{};  // the rig's constants: tag 0
+      wrapped->useMemo(rig_memo, std::span<const std::int64_t>(common.data(), n_poses));
       r.cost = std::move(wrapped);
       r.blocks.push_back(rig_.data());
       r.keys.push_back(kRigBlockKey);
     }
     if (time) {
-      std::vector<Vec3> v, w;
-      for (std::int64_t id : frames) {
-        const WindowFrame* f = window_.find(id);
-        v.push_back(f->v());
-        w.push_back(f->gyr - f->bg());
+      std::array<Vec3, PoseWrappedFactor::kMaxPoses> v, w;
+      for (std::size_t k = 0; k < n_poses; ++k) {
+        const WindowFrame* f = window_.find(frames[k]);
+        v[k] = f->v();
+        w[k] = f->gyr - f->bg();
       }
-      auto wrapped = std::make_shared<TimeShiftedFactor>(r.cost, poses, std::move(v), std::move(w));
-      wrapped->useMemo(time_memo, frames);
+      auto wrapped = std::make_shared<TimeShiftedFactor>(r.cost, pose_span, std::span<const Vec3>(v.data(), n_poses),
+                                                         std::span<const Vec3>(w.data(), n_poses));
+      wrapped->useMemo(time_memo, frame_span);
       r.cost = std::move(wrapped);
       r.blocks.push_back(time_offset_.data());
       r.keys.push_back(kTimeOffsetBlockKey);

@@ -6,11 +6,10 @@
 #include <limits>
 #include <optional>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 #include <ceres/loss_function.h>
-#include <ceres/problem.h>
-#include <ceres/solver.h>
 
 #include "linnet/estimator/manifolds.h"
 #include "linnet/geometry/plucker.h"
@@ -42,32 +41,73 @@ bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinement
   const double before = meanSightingErrorPx(*L_W, sightings, options.focal_px);
   if (!std::isfinite(before)) return false;
 
-  std::array<double, 6> L{};
-  Eigen::Map<Vec6>(L.data()) = *L_W;
-  // The cameras are the factors' "bodies" (identity extrinsics), held constant.
-  std::vector<std::array<double, 7>> poses(sightings.size());
-  ceres::Problem::Options po;
-  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(po);
-  LineManifold line_manifold;
-  ceres::HuberLoss loss(options.huber_px);  // on residuals in pixels (sqrt_info = focal)
-  problem.AddParameterBlock(L.data(), kLineAmbientSize, &line_manifold);
-  for (std::size_t k = 0; k < sightings.size(); ++k) {
-    setPose(sightings[k].T_W_C, poses[k].data());
-    problem.AddResidualBlock(new LineReprojectionFactor(sightings[k].s, sightings[k].e, Pose(), options.focal_px), &loss,
-                             poses[k].data(), L.data());
-    problem.SetParameterBlockConstant(poses[k].data());
+  // Levenberg-Marquardt on the line's 4 tangent coordinates, the sightings' cameras held (they are the factors'
+  // "bodies", identity extrinsics). Huber as iteratively reweighted least squares (Ceres' corrector for a loss with
+  // rho'' = 0). A line has a few dozen 2-row residuals: a general solver's per-problem set-up would cost more than
+  // this arithmetic, and it runs for every line that leaves the window.
+  const LineManifold manifold;
+  const ceres::HuberLoss loss(options.huber_px);  // on residuals in pixels (sqrt_info = focal)
+  // Robust cost 0.5 sum rho(|r|^2); with H and g also the reweighted normal equations in the tangent space.
+  const auto cost = [&](const Vec6& L, Eigen::Matrix4d* H, Eigen::Vector4d* g) {
+    Eigen::Matrix<double, kLineAmbientSize, kLineTangentSize, Eigen::RowMajor> plus;
+    if (H != nullptr) {
+      manifold.PlusJacobian(L.data(), plus.data());
+      H->setZero();
+      g->setZero();
+    }
+    double total = 0.0;
+    for (const LineSighting& o : sightings) {
+      const LineReprojectionFactor f(o.s, o.e, Pose(), options.focal_px);
+      Vec2 r;
+      Eigen::Matrix<double, 2, 6> J_line;
+      if (!f.evaluate(o.T_W_C, L, &r, nullptr, H != nullptr ? &J_line : nullptr))
+        return std::numeric_limits<double>::infinity();
+      double rho[3];
+      loss.Evaluate(r.squaredNorm(), rho);
+      total += 0.5 * rho[0];
+      if (H == nullptr) continue;
+      const Eigen::Matrix<double, 2, 4> J = J_line * plus;
+      H->noalias() += rho[1] * J.transpose() * J;
+      g->noalias() += rho[1] * J.transpose() * r;
+    }
+    return total;
+  };
+  constexpr double kFunctionTolerance = 1e-6;  // stop when a step lowers the cost by less than this share (Ceres' default)
+  Vec6 L = *L_W;
+  Eigen::Matrix4d H;
+  Eigen::Vector4d g;
+  double c = cost(L, &H, &g);
+  // Damping mu relative to diag(H), updated as Ceres' Levenberg-Marquardt does (Nielsen 1999; initial trust region
+  // radius 1e4).
+  double mu = 1e-4, v = 2.0;
+  for (int it = 0; it < options.max_iterations && std::isfinite(c); ++it) {
+    const Eigen::Vector4d D = H.diagonal().cwiseMax(1e-6);
+    Eigen::Matrix4d A = H;
+    A.diagonal() += mu * D;
+    const Eigen::LDLT<Eigen::Matrix4d> ldlt(A);
+    if (ldlt.info() != Eigen::Success) break;
+    const Eigen::Vector4d delta = ldlt.solve(-g);
+    if (!delta.allFinite()) break;
+    Vec6 trial;
+    manifold.Plus(L.data(), delta.data(), trial.data());
+    const double c_trial = cost(trial, nullptr, nullptr);
+    // Decrease of the undamped model: with (H + mu D) delta = -g it is 0.5 (mu delta' D delta - g' delta).
+    const double model = 0.5 * (mu * delta.dot(D.cwiseProduct(delta)) - g.dot(delta));
+    const double rho = (c - c_trial) / model;
+    if (!(c_trial < c) || !(model > 0.0) || !(rho > 1e-3)) {
+      mu *= v;
+      v *= 2.0;
+      continue;
+    }
+    const double relative = (c - c_trial) / std::max(c, std::numeric_limits<double>::min());
+    L = trial;
+    mu *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
+    v = 2.0;
+    if (relative < kFunctionTolerance) break;
+    c = cost(L, &H, &g);
   }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  so.num_threads = 1;
-  so.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
 
-  const Vec6 refined = Eigen::Map<const Vec6>(L.data());
+  const Vec6 refined = L;
   if (!refined.allFinite() || !(meanSightingErrorPx(refined, sightings, options.focal_px) < before)) return false;
   *L_W = refined;
   return true;

@@ -75,30 +75,31 @@ std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockK
                                                         const std::vector<const Residual*>& used,
                                                         int* num_decoupled) const {
   // Structural coupling between dropped blocks: two are coupled when one residual touches both.
-  std::set<std::pair<BlockKey, BlockKey>> coupled;
+  std::map<BlockKey, std::set<BlockKey>> coupled;
   const std::set<BlockKey> drop_set(dropped.begin(), dropped.end());
+  std::vector<BlockKey> d;
   for (const Residual* res : used) {
-    std::vector<BlockKey> d;
+    d.clear();
     for (BlockKey k : res->keys)
       if (drop_set.count(k) != 0) d.push_back(k);
     for (BlockKey a : d)
       for (BlockKey b : d)
-        if (a != b) coupled.emplace(a, b);
+        if (a != b) coupled[a].insert(b);
   }
-  // Greedy independent set, smallest blocks first (stable: ties keep the caller's order).
+  // Greedy independent set, smallest blocks first (stable: ties keep the caller's order). A chosen block rules out
+  // the blocks coupled to it.
   std::vector<BlockKey> by_size = dropped;
   std::stable_sort(by_size.begin(), by_size.end(), [&](BlockKey a, BlockKey b) {
     return blocks_.at(a).tangent_size < blocks_.at(b).tangent_size;
   });
   std::vector<BlockKey> first;
-  std::set<BlockKey> chosen;
+  std::set<BlockKey> chosen, ruled_out;
   for (BlockKey k : by_size) {
-    const bool free =
-        std::none_of(chosen.begin(), chosen.end(), [&](BlockKey c) { return coupled.count({k, c}) != 0; });
-    if (free) {
-      first.push_back(k);
-      chosen.insert(k);
-    }
+    if (ruled_out.count(k) != 0) continue;
+    first.push_back(k);
+    chosen.insert(k);
+    const auto it = coupled.find(k);
+    if (it != coupled.end()) ruled_out.insert(it->second.begin(), it->second.end());
   }
   // A single decoupled block gains nothing over the dense stage.
   if (first.size() < 2) {
@@ -208,18 +209,27 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   // Accumulate H = sum J^T J and g = sum J^T r (tangent space, loss-corrected).
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(total, total);
   Eigen::VectorXd g = Eigen::VectorXd::Zero(total);
+  // Scratch reused across residuals (a marginalisation linearises a few thousand).
+  std::vector<const double*> params;
+  std::vector<RowMatrix> jac_amb;
+  std::vector<double*> jac_ptr;
+  std::vector<Eigen::MatrixXd> J;
+  std::vector<int> res_offset;
+  RowMatrix plus;
   for (const Residual* res : used) {
     const int nr = res->cost->num_residuals();
     const std::size_t nb = res->keys.size();
-    std::vector<const double*> params(nb);
-    std::vector<RowMatrix> jac_amb(nb);
-    std::vector<double*> jac_ptr(nb, nullptr);
+    params.assign(nb, nullptr);
+    jac_amb.resize(nb);
+    jac_ptr.assign(nb, nullptr);
+    res_offset.assign(nb, -1);
     for (std::size_t k = 0; k < nb; ++k) {
       const Block& b = blocks_.at(res->keys[k]);
       params[k] = b.values.data();
       if (!b.constant) {
         jac_amb[k].resize(nr, b.ambient_size);
         jac_ptr[k] = jac_amb[k].data();
+        res_offset[k] = offset.at(res->keys[k]);
       }
     }
     Eigen::VectorXd r(nr);
@@ -227,18 +237,21 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
       throw InputError("Marginaliser::marginalise: a cost function over " + keyName(res->keys.front()) +
                        " failed to evaluate at the linearisation point");
     // Tangent Jacobian per non-constant block.
-    std::vector<Eigen::MatrixXd> J(nb);
+    J.resize(nb);
     bool finite = r.allFinite();
     for (std::size_t k = 0; k < nb; ++k) {
       const Block& b = blocks_.at(res->keys[k]);
-      if (b.constant) continue;
+      if (b.constant) {
+        J[k].resize(0, 0);
+        continue;
+      }
       if (b.manifold == nullptr) {
         J[k] = jac_amb[k];
       } else {
-        RowMatrix plus(b.ambient_size, b.tangent_size);
+        plus.resize(b.ambient_size, b.tangent_size);
         if (!b.manifold->PlusJacobian(b.values.data(), plus.data()))
           throw InputError("Marginaliser::marginalise: PlusJacobian failed for " + keyName(res->keys[k]));
-        J[k] = jac_amb[k] * plus;
+        J[k].noalias() = jac_amb[k] * plus;
       }
       finite = finite && J[k].allFinite();
     }
@@ -249,12 +262,11 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     // Block-wise accumulation: only the touched blocks of H and g change.
     for (std::size_t a = 0; a < nb; ++a) {
       if (J[a].size() == 0) continue;
-      const int oa = offset.at(res->keys[a]);
+      const int oa = res_offset[a];
       g.segment(oa, J[a].cols()).noalias() += J[a].transpose() * r;
       for (std::size_t b = 0; b < nb; ++b) {
         if (J[b].size() == 0) continue;
-        const int ob = offset.at(res->keys[b]);
-        H.block(oa, ob, J[a].cols(), J[b].cols()).noalias() += J[a].transpose() * J[b];
+        H.block(oa, res_offset[b], J[a].cols(), J[b].cols()).noalias() += J[a].transpose() * J[b];
       }
     }
   }

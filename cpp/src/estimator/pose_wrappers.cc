@@ -11,7 +11,7 @@ namespace linnet {
 namespace {
 // Visual residuals have at most 2 pose blocks, 4 rows and (nested wrappers included) a handful of blocks: fixed
 // capacities keep Evaluate free of heap allocation.
-constexpr int kMaxPoses = 2;
+constexpr std::size_t kMaxPoses = PoseWrappedFactor::kMaxPoses;
 constexpr int kMaxRows = 4;
 constexpr int kMaxBlocks = 8;
 using TangentJ = Eigen::Matrix<double, Eigen::Dynamic, kPoseTangentSize, Eigen::RowMajor, kMaxRows, kPoseTangentSize>;
@@ -38,29 +38,32 @@ void PoseTransformMemo::store(const Entry& entry) {
   next_ = (next_ + 1) % kCapacity;
 }
 
-PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
+PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks,
                                      int extra_size, bool extra_is_pose)
     : inner_(std::move(inner)),
       inner_tangent_(dynamic_cast<const TangentJacobians*>(inner_.get())),
-      pose_blocks_(std::move(pose_blocks)),
+      n_poses_(pose_blocks.size()),
       extra_tangent_(extra_is_pose ? kPoseTangentSize : extra_size),
       extra_is_pose_(extra_is_pose) {
   if (extra_is_pose && extra_size != kPoseAmbientSize) throw UsageError("PoseWrappedFactor: a pose block has 7 values");
   if (inner_tangent_ == nullptr)
     throw UsageError("PoseWrappedFactor: the inner factor gives no tangent-space Jacobians (TangentJacobians)");
-  if (static_cast<int>(pose_blocks_.size()) > kMaxPoses || inner_->num_residuals() > kMaxRows ||
+  if (pose_blocks.size() > kMaxPoses || inner_->num_residuals() > kMaxRows ||
       static_cast<int>(inner_->parameter_block_sizes().size()) >= kMaxBlocks || extra_tangent_ > kPoseTangentSize)
     throw UsageError("PoseWrappedFactor: a visual residual has at most 2 poses, 4 rows and 7 blocks");
+  std::copy(pose_blocks.begin(), pose_blocks.end(), pose_blocks_.begin());
   set_num_residuals(inner_->num_residuals());
+  const std::vector<int32_t>& inner_sizes = inner_->parameter_block_sizes();
   std::vector<int32_t>* sizes = mutable_parameter_block_sizes();
-  *sizes = inner_->parameter_block_sizes();
+  sizes->reserve(inner_sizes.size() + 1);
+  sizes->assign(inner_sizes.begin(), inner_sizes.end());
   sizes->push_back(extra_size);
 }
 
-void PoseWrappedFactor::useMemo(std::shared_ptr<PoseTransformMemo> memo, std::vector<std::int64_t> tags) {
-  if (tags.size() != pose_blocks_.size()) throw UsageError("PoseWrappedFactor::useMemo: one tag per pose block");
+void PoseWrappedFactor::useMemo(std::shared_ptr<PoseTransformMemo> memo, std::span<const std::int64_t> tags) {
+  if (tags.size() != n_poses_) throw UsageError("PoseWrappedFactor::useMemo: one tag per pose block");
   memo_ = std::move(memo);
-  memo_tags_ = std::move(tags);
+  std::copy(tags.begin(), tags.end(), memo_tags_.begin());
 }
 
 bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
@@ -68,7 +71,7 @@ bool PoseWrappedFactor::evaluateTangentSpace(double const* const* parameters, do
   const int n_inner = static_cast<int>(inner_->parameter_block_sizes().size());
   const int rows = num_residuals();
   const double* extra = parameters[n_inner];
-  const std::size_t n_poses = pose_blocks_.size();
+  const std::size_t n_poses = n_poses_;
 
   // Inner parameters with the body poses replaced by the transformed poses (and their derivatives when wanted).
   std::array<std::array<double, kPoseAmbientSize>, kMaxPoses> moved;
@@ -145,13 +148,13 @@ bool PoseWrappedFactor::Evaluate(double const* const* parameters, double* residu
   return evaluateThroughTangent(*this, parameter_block_sizes(), num_residuals(), parameters, residuals, jacobians);
 }
 
-RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
+RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks,
                                        const Pose& T_B_R0)
-    : RigCorrectedFactor(std::move(inner), std::move(pose_blocks), Pose::identity(), T_B_R0.inverse()) {}
+    : RigCorrectedFactor(std::move(inner), pose_blocks, Pose::identity(), T_B_R0.inverse()) {}
 
-RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
+RigCorrectedFactor::RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks,
                                        const Pose& left, const Pose& right)
-    : PoseWrappedFactor(std::move(inner), std::move(pose_blocks), kPoseAmbientSize, true),
+    : PoseWrappedFactor(std::move(inner), pose_blocks, kPoseAmbientSize, true),
       L_(left),
       Rr_(right),
       R_L_(left.R()),
@@ -162,7 +165,8 @@ std::shared_ptr<RigCorrectedFactor> RigCorrectedFactor::stereoCorrected(std::sha
                                                                         int pose_block, const Pose& T_B_Ct,
                                                                         const Pose& S0) {
   // T'_Bj * T_B_Ct = T_W_Bj * T_B_Ct * S0^-1 * S: the camera at its uncorrected pose, then S.
-  return std::make_shared<RigCorrectedFactor>(std::move(inner), std::vector<int>{pose_block}, T_B_Ct * S0.inverse(),
+  const std::array<int, 1> blocks{pose_block};
+  return std::make_shared<RigCorrectedFactor>(std::move(inner), std::span<const int>(blocks), T_B_Ct * S0.inverse(),
                                               T_B_Ct.inverse());
 }
 
@@ -184,11 +188,14 @@ Pose RigCorrectedFactor::transform(std::size_t /*k*/, const Pose& body, const do
   return body * N;
 }
 
-TimeShiftedFactor::TimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks,
-                                     std::vector<Vec3> v_W, std::vector<Vec3> w_B)
-    : PoseWrappedFactor(std::move(inner), std::move(pose_blocks), 1, false),
-      v_W_(std::move(v_W)),
-      w_B_(std::move(w_B)) {}
+TimeShiftedFactor::TimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks,
+                                     std::span<const Vec3> v_W, std::span<const Vec3> w_B)
+    : PoseWrappedFactor(std::move(inner), pose_blocks, 1, false) {
+  if (v_W.size() != pose_blocks.size() || w_B.size() != pose_blocks.size())
+    throw UsageError("TimeShiftedFactor: one velocity and one angular rate per pose block");
+  std::copy(v_W.begin(), v_W.end(), v_W_.begin());
+  std::copy(w_B.begin(), w_B.end(), w_B_.begin());
+}
 
 Pose TimeShiftedFactor::transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
                                   ExtraMap* d_extra) const {

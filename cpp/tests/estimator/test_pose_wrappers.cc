@@ -101,7 +101,7 @@ TEST(RigFactor, PointResidualEqualsTheInnerFactorWithCorrectedExtrinsics) {
     auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
                                                            c.T_B_R0 * cam1(), s);
     const PointReprojectionFactor direct(c.uv_host, c.uv_target, c.T_B_R * cam0(), c.T_B_R * cam1(), s);
-    const RigCorrectedFactor wrapped(inner, {0, 1}, c.T_B_R0);
+    const RigCorrectedFactor wrapped(inner, std::vector<int>{0, 1}, c.T_B_R0);
     auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
     double rho = c.rho;
     const double* pw[4] = {bi.data(), bj.data(), &rho, br.data()};
@@ -119,7 +119,7 @@ TEST(RigFactor, PointJacobiansSameCameraAndLeftToRight) {
     const PointCase c = pointCase(rng, target);
     auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
                                                            c.T_B_R0 * target, pointSqrtInformation(kFocal));
-    const RigCorrectedFactor f(inner, {0, 1}, c.T_B_R0);
+    const RigCorrectedFactor f(inner, std::vector<int>{0, 1}, c.T_B_R0);
     auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
     double rho = c.rho;
     ASSERT_TRUE(testing::jacobiansMatch(f, {bi.data(), bj.data(), &rho, br.data()}, {&pm, &pm, nullptr, &pm}, kTol))
@@ -140,7 +140,7 @@ TEST(RigFactor, LineJacobiansAndResidual) {
     Vec6& L = c.L;
     auto inner = std::make_shared<LineReprojectionFactor>(c.s, c.e, T_B_R0 * T_B_C, kFocal);
     const LineReprojectionFactor direct(c.s, c.e, T_B_R * T_B_C, kFocal);
-    const RigCorrectedFactor f(inner, {0}, T_B_R0);
+    const RigCorrectedFactor f(inner, std::vector<int>{0}, T_B_R0);
     auto bp = block(T_W_B), br = block(T_B_R);
     const double* pw[3] = {bp.data(), L.data(), br.data()};
     const double* pd[2] = {bp.data(), L.data()};
@@ -174,7 +174,7 @@ TEST(RigFactor, CheckerRejectsAWrongCorrectionJacobian) {
   const PointCase c = pointCase(rng, cam1());
   auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
                                                          c.T_B_R0 * cam1(), pointSqrtInformation(kFocal));
-  const RigCorrectedFactor f(inner, {0, 1}, c.T_B_R0);
+  const RigCorrectedFactor f(inner, std::vector<int>{0, 1}, c.T_B_R0);
   auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
   double rho = c.rho;
   const std::vector<double*> params = {bi.data(), bj.data(), &rho, br.data()};
@@ -193,7 +193,7 @@ TEST(TimeShiftedFactor, ResidualIsTheInnerFactorAtTheShiftedPoses) {
     auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, cam0(), cam1(), s);
     const std::vector<Vec3> v = {Vec3(1.0, -0.5, 0.2), Vec3(0.3, 0.8, -0.1)};
     const std::vector<Vec3> w = {Vec3(0.5, -1.0, 0.3), Vec3(-0.2, 0.4, 1.5)};
-    const TimeShiftedFactor f(inner, {0, 1}, v, w);
+    const TimeShiftedFactor f(inner, std::vector<int>{0, 1}, v, w);
     double td = 0.004;
     // By hand: the body at t - t_d to first order.
     const Pose Ti(c.T_W_Bi.q * expSO3(-td * w[0]), c.T_W_Bi.p - td * v[0]);
@@ -221,12 +221,12 @@ TEST(TimeShiftedFactor, JacobiansAloneAndAroundTheRigCorrection) {
     auto point = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
                                                            c.T_B_R0 * (trial % 2 == 0 ? cam0() : cam1()),
                                                            pointSqrtInformation(kFocal));
-    const TimeShiftedFactor alone(point, {0, 1}, v, w);
+    const TimeShiftedFactor alone(point, std::vector<int>{0, 1}, v, w);
     ASSERT_TRUE(testing::jacobiansMatch(alone, {bi.data(), bj.data(), &rho, &td}, {&pm, &pm, nullptr, nullptr}, kTol))
         << "trial " << trial;
     // As the estimator nests them: the rig correction inside, the time shift outside.
     auto rig = std::make_shared<RigCorrectedFactor>(point, std::vector<int>{0, 1}, c.T_B_R0);
-    const TimeShiftedFactor nested(rig, {0, 1}, v, w);
+    const TimeShiftedFactor nested(rig, std::vector<int>{0, 1}, v, w);
     ASSERT_TRUE(testing::jacobiansMatch(nested, {bi.data(), bj.data(), &rho, br.data(), &td},
                                         {&pm, &pm, nullptr, &pm, nullptr}, kTol))
         << "trial " << trial;
@@ -234,7 +234,7 @@ TEST(TimeShiftedFactor, JacobiansAloneAndAroundTheRigCorrection) {
     const Pose T_W_C = c.T_W_Bi * cam0();
     Vec6 L = normalisePlucker(pluckerFromPoints(T_W_C * Vec3(-0.8, 0.1, 4.0), T_W_C * Vec3(0.7, -0.2, 3.5)));
     auto line = std::make_shared<LineReprojectionFactor>(Vec2(-0.2, 0.03), Vec2(0.2, -0.05), cam0(), kFocal);
-    const TimeShiftedFactor shifted_line(line, {0}, {v[0]}, {w[0]});
+    const TimeShiftedFactor shifted_line(line, std::vector<int>{0}, std::vector<Vec3>{v[0]}, std::vector<Vec3>{w[0]});
     ASSERT_TRUE(testing::jacobiansMatch(shifted_line, {bi.data(), L.data(), &td}, {&pm, &lm, nullptr}, kTol))
         << "trial " << trial;
   }
@@ -301,7 +301,8 @@ TEST(PoseWrappedFactor, LandmarkJacobianAloneEqualsItsPartOfTheFullRequestBitFor
     auto rig = std::make_shared<RigCorrectedFactor>(line, std::vector<int>{0}, T_B_R0);
     const auto rig_memo = std::make_shared<PoseTransformMemo>();
     rig->useMemo(rig_memo, {0});
-    const TimeShiftedFactor f(rig, {0}, {Vec3(n(rng), n(rng), n(rng))}, {Vec3(n(rng), n(rng), n(rng))});
+    const TimeShiftedFactor f(rig, std::vector<int>{0}, std::vector<Vec3>{Vec3(n(rng), n(rng), n(rng))},
+                              std::vector<Vec3>{Vec3(n(rng), n(rng), n(rng))});
     auto bp = block(T_W_B), br = block(T_B_R);
     double td = 0.005 * n(rng);
     const double* params[] = {bp.data(), c.L.data(), br.data(), &td};
@@ -343,7 +344,7 @@ TEST(StereoCorrection, Cam1PointResidualIsTheInnerFactorWithCam1Corrected) {
     auto rig = std::make_shared<RigCorrectedFactor>(wrapped, std::vector<int>{0, 1}, c.T_B_R0);
     const std::vector<Vec3> v = {Vec3(1.0, -0.5, 0.2), Vec3(0.3, 0.8, -0.1)};
     const std::vector<Vec3> w = {Vec3(0.5, -1.0, 0.3), Vec3(-0.2, 0.4, 1.5)};
-    const TimeShiftedFactor nested(rig, {0, 1}, v, w);
+    const TimeShiftedFactor nested(rig, std::vector<int>{0, 1}, v, w);
     double td = 0.003;
     ASSERT_TRUE(testing::jacobiansMatch(nested, {bi.data(), bj.data(), &rho, bs.data(), br.data(), &td},
                                         {&pm, &pm, nullptr, &pm, &pm, nullptr}, kTol))
@@ -385,7 +386,7 @@ TEST(StereoCorrection, GeneralFormJacobians) {
     const PointCase c = pointCase(rng, cam1());
     auto inner = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, cam0(), cam1(),
                                                            pointSqrtInformation(kFocal));
-    const RigCorrectedFactor f(inner, {0, 1}, randomPose(rng, 0.3, 0.1), randomPose(rng, 0.3, 0.1));
+    const RigCorrectedFactor f(inner, std::vector<int>{0, 1}, randomPose(rng, 0.3, 0.1), randomPose(rng, 0.3, 0.1));
     auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), bx = block(randomPose(rng, 0.01, 0.01));
     double rho = c.rho;
     ASSERT_TRUE(testing::jacobiansMatch(f, {bi.data(), bj.data(), &rho, bx.data()}, {&pm, &pm, nullptr, &pm}, kTol))

@@ -30,7 +30,9 @@
 
 #include <array>
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include <ceres/cost_function.h>
@@ -80,8 +82,11 @@ class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
   /// The wrapped factor takes inner's blocks followed by the extra block (`extra_size` doubles; a pose block on
   /// PoseManifold when `extra_is_pose`, else Euclidean). `inner` must implement TangentJacobians (the visual factors
   /// and the wrappers do), and every 7-double block of it is a pose block.
-  PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, int extra_size,
+  /// At most kMaxPoses pose blocks (a visual residual has one or two).
+  PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks, int extra_size,
                     bool extra_is_pose);
+
+  static constexpr std::size_t kMaxPoses = 2;
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const final;
   bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const final;
@@ -90,7 +95,10 @@ class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
 
   /// Shares transforms through `memo`; tags[k] names the constants of the k-th pose block's transform (see
   /// PoseTransformMemo).
-  void useMemo(std::shared_ptr<PoseTransformMemo> memo, std::vector<std::int64_t> tags);
+  void useMemo(std::shared_ptr<PoseTransformMemo> memo, std::span<const std::int64_t> tags);
+  void useMemo(std::shared_ptr<PoseTransformMemo> memo, std::initializer_list<std::int64_t> tags) {
+    useMemo(std::move(memo), std::span<const std::int64_t>(tags.begin(), tags.size()));
+  }
 
  protected:
   /// The pose handed to the inner factor for the k-th pose block, and the maps from the body's tangent (6 x 6) and
@@ -102,19 +110,21 @@ class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
  private:
   std::shared_ptr<ceres::CostFunction> inner_;
   const TangentJacobians* inner_tangent_;  // inner_, seen through its tangent-space interface
-  std::vector<int> pose_blocks_;
+  // Fixed capacity, not vectors: the window builds a wrapper per visual residual and solve.
+  std::array<int, kMaxPoses> pose_blocks_{};
+  std::size_t n_poses_ = 0;
   int extra_tangent_;
   bool extra_is_pose_;
   std::shared_ptr<PoseTransformMemo> memo_;
-  std::vector<std::int64_t> memo_tags_;
+  std::array<std::int64_t, kMaxPoses> memo_tags_{};
 };
 
 class RigCorrectedFactor final : public PoseWrappedFactor {
  public:
   /// T_B_R0: the correction that inner's extrinsics already contain. Extra block: T_B_R (7, PoseManifold).
-  RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, const Pose& T_B_R0);
+  RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks, const Pose& T_B_R0);
   /// The general form: each pose block k becomes T_W_Bk * left * X * right, X the extra block (7, PoseManifold).
-  RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, const Pose& left,
+  RigCorrectedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks, const Pose& left,
                      const Pose& right);
 
   /// cam1 seen through the stereo correction S (cam1 at T_B_C1 * S): `pose_block` is the pose of the frame whose
@@ -138,15 +148,15 @@ class TimeShiftedFactor final : public PoseWrappedFactor {
  public:
   /// v_W[k], w_B[k]: velocity (W, m/s) and angular rate (B, rad/s) at the k-th pose block's frame. Extra block: t_d
   /// (1, seconds).
-  TimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner, std::vector<int> pose_blocks, std::vector<Vec3> v_W,
-                    std::vector<Vec3> w_B);
+  TimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks,
+                    std::span<const Vec3> v_W, std::span<const Vec3> w_B);
 
  protected:
   Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
                  ExtraMap* d_extra) const override;
 
  private:
-  std::vector<Vec3> v_W_, w_B_;
+  std::array<Vec3, kMaxPoses> v_W_, w_B_;
 };
 
 }  // namespace linnet
