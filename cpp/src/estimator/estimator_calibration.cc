@@ -31,11 +31,12 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
   if (!rig && !time) return;
   const bool stereo = rig && stereoEstimated() && calibration_moving_s_ >= options_.extrinsics.stereo_from_s;
   const Pose T_B_C1 = stereo ? appliedT_B_C1() : Pose::identity();
-  // One memo per kind of wrapper: the rig's constants are common to all residuals (tag 0), the stereo correction's
-  // and the time shift's are their frame's (tagged by frame).
+  // One memo per kind of wrapper: the rig's constants are common to all residuals (tag 0), the stereo correction's,
+  // the time shift's and the fused pair's are their frame's (tagged by frame).
   const auto rig_memo = std::make_shared<PoseTransformMemo>();
   const auto stereo_memo = std::make_shared<PoseTransformMemo>();
   const auto time_memo = std::make_shared<PoseTransformMemo>();
+  const auto rig_time_memo = std::make_shared<PoseTransformMemo>();  // the fused wrapper's: tagged by frame
   const auto frameOf = [&](const ResidualSpec& r, int b) { return r.keys[static_cast<std::size_t>(b)] / 4; };
   for (ResidualSpec& r : *residuals) {
     // cam1's correction applies to cam1's pose on the body, so it is the innermost wrapper.
@@ -65,7 +66,27 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
     if (n_poses == 0) continue;  // the same-frame stereo residual depends on neither
     const std::span<const int> pose_span(poses.data(), n_poses);
     const std::span<const std::int64_t> frame_span(frames.data(), n_poses);
-    // The rig correction applies to the time-shifted body pose, so it is the inner wrapper.
+    // The rig correction applies to the time-shifted body pose (the inner wrapper when nested). While both are
+    // estimated, one wrapper composes them (same residual; the two maps applied once per pose, not level by level).
+    std::array<Vec3, PoseWrappedFactor::kMaxPoses> v, w;
+    if (time) {
+      for (std::size_t k = 0; k < n_poses; ++k) {
+        const WindowFrame* f = window_.find(frames[k]);
+        v[k] = f->v();
+        w[k] = f->gyr - f->bg();
+      }
+    }
+    const std::span<const Vec3> v_span(v.data(), n_poses), w_span(w.data(), n_poses);
+    if (rig && time) {
+      auto wrapped = std::make_shared<RigTimeShiftedFactor>(r.cost, pose_span, rig_applied_, v_span, w_span);
+      wrapped->useMemo(rig_time_memo, frame_span);
+      r.cost = std::move(wrapped);
+      r.blocks.push_back(rig_.data());
+      r.keys.push_back(kRigBlockKey);
+      r.blocks.push_back(time_offset_.data());
+      r.keys.push_back(kTimeOffsetBlockKey);
+      continue;
+    }
     if (rig) {
       auto wrapped = std::make_shared<RigCorrectedFactor>(r.cost, pose_span, rig_applied_);
       const std::array<std::int64_t, PoseWrappedFactor::kMaxPoses> common{};  // the rig's constants: tag 0
@@ -75,14 +96,7 @@ void EstimatorCore::correctCalibration(std::vector<ResidualSpec>* residuals) {
       r.keys.push_back(kRigBlockKey);
     }
     if (time) {
-      std::array<Vec3, PoseWrappedFactor::kMaxPoses> v, w;
-      for (std::size_t k = 0; k < n_poses; ++k) {
-        const WindowFrame* f = window_.find(frames[k]);
-        v[k] = f->v();
-        w[k] = f->gyr - f->bg();
-      }
-      auto wrapped = std::make_shared<TimeShiftedFactor>(r.cost, pose_span, std::span<const Vec3>(v.data(), n_poses),
-                                                         std::span<const Vec3>(w.data(), n_poses));
+      auto wrapped = std::make_shared<TimeShiftedFactor>(r.cost, pose_span, v_span, w_span);
       wrapped->useMemo(time_memo, frame_span);
       r.cost = std::move(wrapped);
       r.blocks.push_back(time_offset_.data());

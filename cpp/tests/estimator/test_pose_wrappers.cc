@@ -207,20 +207,40 @@ TEST(TimeShiftedFactor, ResidualIsTheInnerFactorAtTheShiftedPoses) {
   }
 }
 
+// A two-frame point residual with random rates and offset, as the time-shift tests use it.
+struct TimedPoint {
+  PointCase c;
+  std::vector<Vec3> v, w;
+  double td = 0.0, rho = 0.0;
+  std::array<double, 7> bi{}, bj{}, br{};
+  std::shared_ptr<PointReprojectionFactor> point;
+};
+
+TimedPoint timedPoint(std::mt19937& rng, int trial) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  auto rnd = [&](double scale) { return Vec3(scale * n(rng), scale * n(rng), scale * n(rng)); };
+  TimedPoint t;
+  t.c = pointCase(rng, trial % 2 == 0 ? cam0() : cam1());
+  t.v = {rnd(1.0), rnd(1.0)};
+  t.w = {rnd(1.0), rnd(1.0)};
+  t.td = 0.01 * n(rng);
+  t.rho = t.c.rho;
+  t.bi = block(t.c.T_W_Bi);
+  t.bj = block(t.c.T_W_Bj);
+  t.br = block(t.c.T_B_R);
+  t.point = std::make_shared<PointReprojectionFactor>(t.c.uv_host, t.c.uv_target, t.c.T_B_R0 * cam0(),
+                                                      t.c.T_B_R0 * (trial % 2 == 0 ? cam0() : cam1()),
+                                                      pointSqrtInformation(kFocal));
+  return t;
+}
+
 TEST(TimeShiftedFactor, JacobiansAloneAndAroundTheRigCorrection) {
   std::mt19937 rng(16);
-  std::normal_distribution<double> n(0.0, 1.0);
   const PoseManifold pm;
   const LineManifold lm;
-  auto rnd = [&](double scale) { return Vec3(scale * n(rng), scale * n(rng), scale * n(rng)); };
   for (int trial = 0; trial < 40; ++trial) {
-    const PointCase c = pointCase(rng, trial % 2 == 0 ? cam0() : cam1());
-    const std::vector<Vec3> v = {rnd(1.0), rnd(1.0)}, w = {rnd(1.0), rnd(1.0)};
-    double td = 0.01 * n(rng), rho = c.rho;
-    auto bi = block(c.T_W_Bi), bj = block(c.T_W_Bj), br = block(c.T_B_R);
-    auto point = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, c.T_B_R0 * cam0(),
-                                                           c.T_B_R0 * (trial % 2 == 0 ? cam0() : cam1()),
-                                                           pointSqrtInformation(kFocal));
+    TimedPoint t = timedPoint(rng, trial);
+    auto& [c, v, w, td, rho, bi, bj, br, point] = t;
     const TimeShiftedFactor alone(point, std::vector<int>{0, 1}, v, w);
     ASSERT_TRUE(testing::jacobiansMatch(alone, {bi.data(), bj.data(), &rho, &td}, {&pm, &pm, nullptr, nullptr}, kTol))
         << "trial " << trial;
@@ -236,6 +256,50 @@ TEST(TimeShiftedFactor, JacobiansAloneAndAroundTheRigCorrection) {
     auto line = std::make_shared<LineReprojectionFactor>(Vec2(-0.2, 0.03), Vec2(0.2, -0.05), cam0(), kFocal);
     const TimeShiftedFactor shifted_line(line, std::vector<int>{0}, std::vector<Vec3>{v[0]}, std::vector<Vec3>{w[0]});
     ASSERT_TRUE(testing::jacobiansMatch(shifted_line, {bi.data(), L.data(), &td}, {&pm, &lm, nullptr}, kTol))
+        << "trial " << trial;
+  }
+}
+
+// The fused rig-and-time wrapper the estimator uses while both are estimated: the same residual and Jacobians as the
+// nested pair (to rounding: the maps are composed before the chain rule), its Jacobians right by the shared checker,
+// for a two-pose point residual and a one-pose line residual, with a shared memo and without.
+TEST(RigTimeShiftedFactor, EqualsTheNestedWrappersAndItsJacobiansMatch) {
+  std::mt19937 rng(31);
+  const PoseManifold pm;
+  const LineManifold lm;
+  const auto memo = std::make_shared<PoseTransformMemo>();
+  for (int trial = 0; trial < 20; ++trial) {
+    TimedPoint t = timedPoint(rng, trial);
+    auto& [c, v, w, td, rho, bi, bj, br, point] = t;
+    auto rig = std::make_shared<RigCorrectedFactor>(point, std::vector<int>{0, 1}, c.T_B_R0);
+    const TimeShiftedFactor nested(rig, std::vector<int>{0, 1}, v, w);
+    RigTimeShiftedFactor fused(point, std::vector<int>{0, 1}, c.T_B_R0, v, w);
+    if (trial % 4 >= 2) fused.useMemo(memo, {100 + trial, 200 + trial});
+    EXPECT_EQ(fused.parameter_block_sizes(), nested.parameter_block_sizes());
+    const double* params[] = {bi.data(), bj.data(), &rho, br.data(), &td};
+    for (int pass = 0; pass < 2; ++pass) {  // the second pass answers from the memo where one is used
+      std::array<double, 2> ra{}, rb{};
+      std::array<std::array<double, 14>, 5> ja{}, jb{};
+      double* jac_a[] = {ja[0].data(), ja[1].data(), ja[2].data(), ja[3].data(), ja[4].data()};
+      double* jac_b[] = {jb[0].data(), jb[1].data(), jb[2].data(), jb[3].data(), jb[4].data()};
+      ASSERT_TRUE(nested.Evaluate(params, ra.data(), jac_a));
+      ASSERT_TRUE(fused.Evaluate(params, rb.data(), jac_b));
+      for (int i = 0; i < 2; ++i) EXPECT_NEAR(ra[i], rb[i], 1e-12 * (1.0 + std::abs(ra[i]))) << "trial " << trial;
+      for (std::size_t b = 0; b < 5; ++b)
+        for (std::size_t i = 0; i < 14; ++i)
+          EXPECT_NEAR(ja[b][i], jb[b][i], 1e-9 * (1.0 + std::abs(ja[b][i]))) << "trial " << trial << " block " << b;
+    }
+    ASSERT_TRUE(testing::jacobiansMatch(fused, {bi.data(), bj.data(), &rho, br.data(), &td},
+                                        {&pm, &pm, nullptr, &pm, nullptr}, kTol))
+        << "trial " << trial;
+    // A line residual (one pose block).
+    const Pose T_W_C = c.T_W_Bi * c.T_B_R * cam0();
+    Vec6 L = normalisePlucker(pluckerFromPoints(T_W_C * Vec3(-0.8, 0.1, 4.0), T_W_C * Vec3(0.7, -0.2, 3.5)));
+    auto line = std::make_shared<LineReprojectionFactor>(Vec2(-0.2, 0.03), Vec2(0.2, -0.05), c.T_B_R0 * cam0(), kFocal);
+    const RigTimeShiftedFactor fused_line(line, std::vector<int>{0}, c.T_B_R0, std::vector<Vec3>{v[0]},
+                                          std::vector<Vec3>{w[0]});
+    ASSERT_TRUE(testing::jacobiansMatch(fused_line, {bi.data(), L.data(), br.data(), &td}, {&pm, &lm, &pm, nullptr},
+                                        kTol))
         << "trial " << trial;
   }
 }

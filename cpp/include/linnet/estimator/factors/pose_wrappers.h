@@ -44,7 +44,11 @@
 namespace linnet {
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
-using ExtraMap = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;  // extra tangent -> transformed pose tangent
+/// Tangent size of a wrapper's extra blocks together: a pose correction (6) and the time offset (1).
+inline constexpr int kMaxExtraTangent = 7;
+inline constexpr int kMaxExtraAmbient = 8;
+using ExtraMap = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxExtraTangent>;  // extra tangent -> transformed pose
+                                                                                   // tangent
 
 /// Transformed poses shared by the wrappers of one solve. A frame's residuals all see the same body pose and
 /// calibration blocks, so with a memo each transform (and its derivatives) is computed once per frame and evaluation
@@ -57,7 +61,7 @@ class PoseTransformMemo {
   struct Entry {
     std::int64_t tag = 0;
     std::array<double, kPoseAmbientSize> body{};
-    std::array<double, kPoseAmbientSize> extra{};
+    std::array<double, kMaxExtraAmbient> extra{};
     bool derivatives = false;
     Pose T;
     Mat6 d_body;
@@ -85,6 +89,9 @@ class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
   /// At most kMaxPoses pose blocks (a visual residual has one or two).
   PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks, int extra_size,
                     bool extra_is_pose);
+  /// Two extra blocks: a pose (7, PoseManifold), then `second_size` Euclidean values. transform() then gets both
+  /// blocks' values one after the other, and its extra map has the pose's 6 tangent columns, then the second's.
+  PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks, int second_size);
 
   static constexpr std::size_t kMaxPoses = 2;
 
@@ -108,13 +115,18 @@ class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
                          ExtraMap* d_extra) const = 0;
 
  private:
+  void init(std::span<const int> pose_blocks);
+
   std::shared_ptr<ceres::CostFunction> inner_;
   const TangentJacobians* inner_tangent_;  // inner_, seen through its tangent-space interface
   // Fixed capacity, not vectors: the window builds a wrapper per visual residual and solve.
   std::array<int, kMaxPoses> pose_blocks_{};
   std::size_t n_poses_ = 0;
-  int extra_tangent_;
-  bool extra_is_pose_;
+  int n_extra_ = 1;                    // extra blocks (1 or 2)
+  std::array<int, 2> extra_ambient_{};  // per extra block
+  std::array<int, 2> extra_tangents_{};
+  int extra_tangent_ = 0;               // all extra blocks together
+  int extra_ambient_total_ = 0;
   std::shared_ptr<PoseTransformMemo> memo_;
   std::array<std::int64_t, kMaxPoses> memo_tags_{};
 };
@@ -156,6 +168,27 @@ class TimeShiftedFactor final : public PoseWrappedFactor {
                  ExtraMap* d_extra) const override;
 
  private:
+  std::array<Vec3, kMaxPoses> v_W_, w_B_;
+};
+
+/// The rig correction inside the time shift, as the estimator nests RigCorrectedFactor in TimeShiftedFactor while
+/// both are estimated, in one wrapper: each pose block k becomes T'_k = shift(T_W_Bk, t_d) * T_B_R * T_B_R0^-1, and
+/// the two transforms' maps are composed once per pose (and shared through the memo, tagged by frame: v and w are the
+/// frame's) instead of being chained residual by residual, level by level. Extra blocks: T_B_R (7, PoseManifold),
+/// then t_d (1, seconds).
+class RigTimeShiftedFactor final : public PoseWrappedFactor {
+ public:
+  RigTimeShiftedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks, const Pose& T_B_R0,
+                       std::span<const Vec3> v_W, std::span<const Vec3> w_B);
+
+ protected:
+  Pose transform(std::size_t k, const Pose& body, const double* extra, Mat6* d_body,
+                 ExtraMap* d_extra) const override;
+
+ private:
+  Pose Rr_;          // T_B_R0^-1
+  Mat3 R_Rr_t_;      // R_Rr^T
+  Mat3 skew_t_Rr_;   // [t_Rr]x
   std::array<Vec3, kMaxPoses> v_W_, w_B_;
 };
 
