@@ -277,15 +277,14 @@ Pose RigTimeShiftedFactor::transform(std::size_t k, const Pose& body, const doub
                                      ExtraMap* d_extra) const {
   // extra: T_B_R (7), then t_d. The time shift first (the outer wrapper when nested), then the rig correction.
   const double td = extra[kPoseAmbientSize];
-  if (d_body == nullptr) {
-    const Pose shifted = timeShift(body, td, v_W_[k], w_B_[k], nullptr, nullptr);
-    return rigTransform(shifted, Pose::identity(), Mat3::Identity(), Rr_, R_Rr_t_, skew_t_Rr_, extra, nullptr, nullptr);
-  }
+  const bool derivatives = d_body != nullptr;
   Mat6 A_time, A_rig;
   ExtraMap B_time(6, 1), B_rig(6, 6);
-  const Pose shifted = timeShift(body, td, v_W_[k], w_B_[k], &A_time, &B_time);
-  const Pose out = rigTransform(shifted, Pose::identity(), Mat3::Identity(), Rr_, R_Rr_t_, skew_t_Rr_, extra, &A_rig,
-                                &B_rig);
+  const Pose shifted =
+      timeShift(body, td, v_W_[k], w_B_[k], derivatives ? &A_time : nullptr, derivatives ? &B_time : nullptr);
+  const Pose out = rigTransform(shifted, Pose::identity(), Mat3::Identity(), Rr_, R_Rr_t_, skew_t_Rr_, extra,
+                                derivatives ? &A_rig : nullptr, derivatives ? &B_rig : nullptr);
+  if (!derivatives) return out;
   d_body->noalias() = A_rig * A_time;
   d_extra->resize(6, kPoseTangentSize + 1);
   d_extra->leftCols(kPoseTangentSize) = B_rig;
