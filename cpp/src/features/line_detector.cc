@@ -260,7 +260,8 @@ void orientSegment(const cv::Mat& gray, const LineDetectorOptions& options, Line
   if (sum < 0.0) std::swap(segment->s, segment->e);
 }
 
-bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment) {
+bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment, double* support) {
+  if (support) *support = 0.0;
   const double len = segment->length();
   if (!(len > 1.0)) return false;
   Vec2 d = segment->direction();
@@ -351,6 +352,7 @@ bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, Line
   // Principal direction of the 2x2 covariance.
   const double angle = 0.5 * std::atan2(2.0 * cto, ctt - coo);
   if (std::abs(angle) > 0.2) return false;  // more than ~11 degrees off: refinement found another structure
+  if (support) *support = static_cast<double>(count) / nsamples;
   // A bent edge (lens distortion bends straight scene lines): a weighted quadratic o(u) = c0 + c1 u + c2 u^2,
   // u = 2 t / len - 1, through the edge offsets. When its sagitta |c2| exceeds refine_bend_px, the endpoints are put
   // on the fitted curve (the segment becomes a chord of the edge: both endpoints on the edge, so that they undistort

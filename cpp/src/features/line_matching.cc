@@ -209,13 +209,14 @@ int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSeg
 }
 
 bool stereoGeometryOk(const StereoMatchOptions& options, const Mat3& E, const Pose& T_C1_C0, const LineSegment& left,
-                      const LineSegment& right, double* overlap, Vec2* q_s, Vec2* q_e) {
+                      const LineSegment& right, double* overlap, Vec2* q_s, Vec2* q_e, Vec2* depth) {
   const Vec3 xs(left.s.x(), left.s.y(), 1.0), xe(left.e.x(), left.e.y(), 1.0);
   const Vec3 rs(right.s.x(), right.s.y(), 1.0), re(right.e.x(), right.e.y(), 1.0);
   const Vec3 lr = rs.cross(re);  // the right segment's line
   const double sin_min = std::sin(options.min_epipolar_angle_deg * kDegToRad);
   const Vec3 ends[2] = {xs, xe};
   Vec2 q[2];
+  double z[2];
   const Mat3 R = T_C1_C0.R();
   for (int k = 0; k < 2; ++k) {
     const Vec3 epi = E * ends[k];  // epipolar line of the left endpoint in cam1
@@ -232,8 +233,8 @@ bool stereoGeometryOk(const StereoMatchOptions& options, const Mat3& E, const Po
     const Vec3 a = qh.cross(R * ends[k]), b = qh.cross(T_C1_C0.p);
     const double aa = a.squaredNorm();
     if (aa < 1e-18) return false;
-    const double depth = -a.dot(b) / aa;
-    if (!(depth >= options.min_depth_m && depth <= options.max_depth_m)) return false;
+    z[k] = -a.dot(b) / aa;
+    if (!(z[k] >= options.min_depth_m && z[k] <= options.max_depth_m)) return false;
   }
   const Vec2 u = right.e - right.s;
   const double lu = u.norm();
@@ -246,6 +247,7 @@ bool stereoGeometryOk(const StereoMatchOptions& options, const Mat3& E, const Po
   if (overlap) *overlap = ov;
   if (q_s) *q_s = q[0];
   if (q_e) *q_e = q[1];
+  if (depth) *depth = Vec2(z[0], z[1]);
   return true;
 }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <ctime>
 #include <functional>
+#include <limits>
 #include <numbers>
 #include <numeric>
 #include <string>
@@ -45,12 +46,23 @@ bool duplicatesTrack(const LineSegment& seg, const std::vector<LineTracker::Trac
   return false;
 }
 
+// Depth along the ray (x, 1) of its closest point to the line through a and b; NaN when they are nearly parallel.
+double depthNearLine(const Vec2& x, const Vec3& a, const Vec3& b) {
+  const Vec3 r(x.x(), x.y(), 1.0), u = b - a;
+  const double rr = r.dot(r), ru = r.dot(u), uu = u.dot(u);
+  const double det = rr * uu - ru * ru;
+  if (!(det > 1e-9 * rr * uu)) return std::numeric_limits<double>::quiet_NaN();
+  return (uu * r.dot(a) - ru * u.dot(a)) / det;
+}
+
 }  // namespace
 
 LineTracker::LineTracker(const LineTrackerOptions& options, const CameraModel& cam0, const CameraModel* cam1,
                          const Pose& T_C1_C0)
     : options_(options), cam0_(cam0), cam1_(cam1), T_C1_C0_(T_C1_C0), detector_(options.detection) {
   validateOptions(options_, "lines");
+  guided_refine_ = options_.detection;
+  guided_refine_.refine_search_px = options_.stereo.guided_search_px;
   if (options_.stereo.min_depth_m >= options_.stereo.max_depth_m)
     throw ConfigError("config key 'lines.stereo.min_depth_m' must be below 'lines.stereo.max_depth_m'");
   if (cam1_ != nullptr && T_C1_C0_.p.norm() < 1e-6)
@@ -158,7 +170,14 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   for (std::size_t i = 0; i < segs_l_.size(); ++i) {
     if (match_of_cur[i] < 0) continue;
     const Track& old = *prev[match_of_cur[i]];
-    next.push_back(Track{old.id, segs_l_[i], leftDesc(static_cast<int>(i)), old.length + 1, 0, false});
+    Track t = old;  // keeps its stereo prior, turned into this frame
+    rotatePrior(R_pred, &t);
+    t.px = segs_l_[i];
+    t.desc = leftDesc(static_cast<int>(i));
+    ++t.length;
+    t.missed = 0;
+    t.tentative = false;
+    next.push_back(t);
     if (old.tentative) {  // confirmed: delivered from now on
       --tm.tracked;
       ++tm.new_lines;
@@ -171,6 +190,7 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   for (std::size_t k = 0; k < prev.size(); ++k) {
     if (prev_matched[k] || prev[k]->tentative || prev[k]->missed + 1 > options_.max_missed) continue;
     Track t = *prev[k];
+    rotatePrior(R_pred, &t);
     t.px = prev_segs[k];  // where the rotation prediction put it (unchanged without one)
     ++t.missed;
     lost.push_back(t);
@@ -225,8 +245,9 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   out.reserve(tracks_.size());
   std::vector<LineSegment> left_uv;
   std::vector<LbdDescriptor> left_desc;
-  std::vector<int> out_of_left;
-  for (const Track& tr : tracks_) {
+  std::vector<int> track_of_left;
+  for (std::size_t ti = 0; ti < tracks_.size(); ++ti) {
+    const Track& tr = tracks_[ti];
     LineObservation ob;
     LineSegment uv;
     if (!undistortSegment(cam0_, tr.px, &uv)) continue;
@@ -236,18 +257,128 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     ob.s0 = uv.s;
     ob.e0 = uv.e;
     ob.track_length = tr.length;
-    out_of_left.push_back(static_cast<int>(out.size()));
+    track_of_left.push_back(static_cast<int>(ti));
     left_uv.push_back(uv);
     left_desc.push_back(tr.desc);
     out.push_back(ob);
   }
-  double stereo_undistort_ms = msSince(t0);
+  tm.stereo_ms = msSince(t0);
+  if (stereo) matchRight(right, left_uv, left_desc, track_of_left, &out, &tm);
+  lines->insert(lines->end(), out.begin(), out.end());
+  last_t_ = t;
+  has_last_ = true;
+  ++frame_index_;
+  tm.total_ms = msSince(t_start);
+  tm.cpu_total_ms = threadCpuMs() - cpu_start;
+  timings_ = tm;
+}
 
-  // Right image: detect, merge, then match left -> right; right descriptors only for geometric candidates.
-  if (stereo) {
-    detectAndMerge(right, &segs_r_, &desc_r_, &described_r_, &tm);
-    tm.detected_right = static_cast<int>(segs_r_.size());
-    t0 = Clock::now();
+void LineTracker::rotatePrior(const std::optional<Mat3>& R_Ccur_Cprev, Track* track) const {
+  if (!R_Ccur_Cprev || track->stereo_frame < 0) return;
+  track->stereo_s = *R_Ccur_Cprev * track->stereo_s;
+  track->stereo_e = *R_Ccur_Cprev * track->stereo_e;
+}
+
+bool LineTracker::predictRight(const Track& track, const LineSegment& left_uv, LineSegment* px) const {
+  // The line as triangulated at its last match, turned into this frame; each current left endpoint takes the depth of
+  // its ray's closest point to it (the line's current image is the left segment, so only depths are needed).
+  const Vec3 &a = track.stereo_s, &b = track.stereo_e;
+  const Vec2 ends[2] = {left_uv.s, left_uv.e};
+  Vec2 out[2];
+  for (int k = 0; k < 2; ++k) {
+    const double z = depthNearLine(ends[k], a, b);
+    if (!(z >= options_.stereo.min_depth_m && z <= options_.stereo.max_depth_m)) return false;
+    const Vec3 p1 = T_C1_C0_ * (z * Vec3(ends[k].x(), ends[k].y(), 1.0));
+    if (!cam1_->project(p1, &out[k]) || !std::isfinite(out[k].sum())) return false;
+  }
+  // Keep the part inside cam1's image (the right camera sees less of the scene on one side): Liang-Barsky clipping.
+  const double margin = 2.0;
+  const Vec2 lo(margin, margin), hi(cam1_->width() - 1.0 - margin, cam1_->height() - 1.0 - margin);
+  const Vec2 d = out[1] - out[0];
+  double t0 = 0.0, t1 = 1.0;
+  for (int ax = 0; ax < 2; ++ax) {
+    if (std::abs(d[ax]) < 1e-12) {
+      if (out[0][ax] < lo[ax] || out[0][ax] > hi[ax]) return false;
+      continue;
+    }
+    double ta = (lo[ax] - out[0][ax]) / d[ax], tb = (hi[ax] - out[0][ax]) / d[ax];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (!(t1 > t0)) return false;
+  px->s = out[0] + t0 * d;
+  px->e = out[0] + t1 * d;
+  return px->length() >= options_.detection.min_length_px;
+}
+
+void LineTracker::matchRight(const cv::Mat& right, const std::vector<LineSegment>& left_uv, const std::vector<LbdDescriptor>& left_desc,
+                             const std::vector<int>& track_of_left, std::vector<LineObservation>* out,
+                             LineFrameTimings* tm) {
+  const auto t_begin = Clock::now();
+  const LineFrameTimings before = *tm;
+  const StereoMatchOptions& so = options_.stereo;
+  const Mat3 E = skew(T_C1_C0_.p) * T_C1_C0_.R();
+  const double cos_stereo = std::cos(so.max_angle_deg * std::numbers::pi / 180.0);
+  auto describeRight = [&](const LineSegment& seg) {
+    const auto td = Clock::now();
+    const LbdDescriptor d = binarizeLbd(computeLbdFloat(right, options_.lbd, seg));
+    tm->describe_ms += msSince(td);
+    return d;
+  };
+  // A right segment for left line k passes the direction and epipolar tests; then it is the line's observation in
+  // cam1, and its triangulated endpoints are the track's prior for the next frame's guided pass.
+  auto accept = [&](std::size_t k, const LineSegment& px) {
+    LineSegment uv;
+    double overlap = 0.0;
+    Vec2 depth;
+    if (!undistortSegment(*cam1_, px, &uv) || uv.direction().dot(left_uv[k].direction()) < cos_stereo ||
+        !stereoGeometryOk(so, E, T_C1_C0_, left_uv[k], uv, &overlap, nullptr, nullptr, &depth))
+      return false;
+    LineObservation& ob = (*out)[k];
+    ob.has_right = true;
+    ob.ps1 = px.s;
+    ob.pe1 = px.e;
+    ob.s1 = uv.s;
+    ob.e1 = uv.e;
+    Track& tr = tracks_[track_of_left[k]];
+    tr.stereo_frame = frame_index_;
+    tr.stereo_s = depth.x() * Vec3(left_uv[k].s.x(), left_uv[k].s.y(), 1.0);
+    tr.stereo_e = depth.y() * Vec3(left_uv[k].e.x(), left_uv[k].e.y(), 1.0);
+    ++tm->stereo_matched;
+    return true;
+  };
+
+  // The right image's full detection every detect_interval frames; in between, the guided pass: the lines matched
+  // in the last frames, predicted and refined on the right image's edge. A frame where too few lines have such a
+  // prior (the first frames, a view that changed) is detected instead.
+  auto hasPrior = [&](const Track& tr) {
+    return tr.stereo_frame >= 0 && frame_index_ - tr.stereo_frame <= so.guided_max_age;
+  };
+  const auto with_prior = std::count_if(track_of_left.begin(), track_of_left.end(),
+                                        [&](int ti) { return hasPrior(tracks_[ti]); });
+  const bool guided_frame = frames_since_detection_ + 1 < so.detect_interval &&
+                            static_cast<double>(with_prior) >= so.guided_min_prior_fraction * left_uv.size();
+  if (left_uv.empty()) {
+    ++frames_since_detection_;
+  } else if (guided_frame) {
+    ++frames_since_detection_;
+    for (std::size_t k = 0; k < left_uv.size(); ++k) {
+      const Track& tr = tracks_[track_of_left[k]];
+      if (!hasPrior(tr)) continue;
+      LineSegment px;
+      double support = 0.0;
+      if (!predictRight(tr, left_uv[k], &px)) continue;
+      if (!refineSegment(right, guided_refine_, &px, &support) || support < so.guided_min_support) continue;
+      if (so.guided_max_hamming < 256 && hammingDistance(left_desc[k], describeRight(px)) > so.guided_max_hamming)
+        continue;
+      if (accept(k, px)) ++tm->stereo_guided;
+    }
+  } else {
+    frames_since_detection_ = 0;
+    tm->right_detected = true;
+    detectAndMerge(right, &segs_r_, &desc_r_, &described_r_, tm);
+    tm->detected_right = static_cast<int>(segs_r_.size());
     std::vector<LineSegment> right_uv;
     std::vector<int> right_index;
     for (std::size_t j = 0; j < segs_r_.size(); ++j) {
@@ -257,57 +388,29 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
       right_index.push_back(static_cast<int>(j));
     }
     std::vector<LineMatchCandidate> cands;
-    stereoCandidates(options_.stereo, T_C1_C0_, left_uv, right_uv, &cands);
-    double describe_ms = 0.0;
+    stereoCandidates(so, T_C1_C0_, left_uv, right_uv, &cands);
     for (LineMatchCandidate& c : cands) {
       const int j = right_index[c.j];
       if (!described_r_[j]) {
-        const auto td = Clock::now();
-        desc_r_[j] = binarizeLbd(computeLbdFloat(right, options_.lbd, segs_r_[j]));
+        desc_r_[j] = describeRight(segs_r_[j]);
         described_r_[j] = 1;
-        describe_ms += msSince(td);
       }
       c.distance = hammingDistance(left_desc[c.i], desc_r_[j]);
     }
     std::vector<int> match_of_left;
-    selectMutualBest(static_cast<int>(left_uv.size()), static_cast<int>(right_uv.size()), cands,
-                     options_.stereo.max_hamming, options_.stereo.ratio, &match_of_left);
-    double refine_ms = 0.0;
-    const Mat3 E = skew(T_C1_C0_.p) * T_C1_C0_.R();
-    const double cos_stereo = std::cos(options_.stereo.max_angle_deg * std::numbers::pi / 180.0);
+    selectMutualBest(static_cast<int>(left_uv.size()), static_cast<int>(right_uv.size()), cands, so.max_hamming,
+                     so.ratio, &match_of_left);
     for (std::size_t k = 0; k < match_of_left.size(); ++k) {
-      const int m = match_of_left[k];
-      if (m < 0) continue;
+      if (match_of_left[k] < 0) continue;
       const auto tr = Clock::now();
-      LineSegment px = segs_r_[right_index[m]];
+      LineSegment px = segs_r_[right_index[match_of_left[k]]];
       refine(right, &px);
-      LineSegment uv;
-      bool ok = undistortSegment(*cam1_, px, &uv);
-      refine_ms += msSince(tr);
-      // The refined segment must still pass the direction and epipolar tests.
-      double overlap = 0.0;
-      ok = ok && uv.direction().dot(left_uv[k].direction()) >= cos_stereo &&
-           stereoGeometryOk(options_.stereo, E, T_C1_C0_, left_uv[k], uv, &overlap);
-      if (!ok) continue;
-      LineObservation& ob = out[out_of_left[k]];
-      ob.has_right = true;
-      ob.ps1 = px.s;
-      ob.pe1 = px.e;
-      ob.s1 = uv.s;
-      ob.e1 = uv.e;
-      ++tm.stereo_matched;
+      tm->detect_ms += msSince(tr);
+      accept(k, px);  // the refined segment must still pass the tests
     }
-    stereo_undistort_ms += msSince(t0) - describe_ms - refine_ms;
-    tm.describe_ms += describe_ms;
-    tm.detect_ms += refine_ms;
   }
-  tm.stereo_ms = stereo_undistort_ms;
-  lines->insert(lines->end(), out.begin(), out.end());
-  last_t_ = t;
-  has_last_ = true;
-  tm.total_ms = msSince(t_start);
-  tm.cpu_total_ms = threadCpuMs() - cpu_start;
-  timings_ = tm;
+  tm->stereo_ms += msSince(t_begin) - (tm->detect_ms - before.detect_ms) - (tm->merge_ms - before.merge_ms) -
+                   (tm->describe_ms - before.describe_ms);
 }
 
 }  // namespace linnet

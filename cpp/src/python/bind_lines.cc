@@ -165,7 +165,8 @@ py::dict timingsToDict(const LineFrameTimings& t) {
   d["total_ms"] = t.total_ms;
   d["cpu_left_ms"] = t.cpu_left_ms, d["cpu_total_ms"] = t.cpu_total_ms;
   d["detected_left"] = t.detected_left, d["detected_right"] = t.detected_right, d["tracked"] = t.tracked;
-  d["new_lines"] = t.new_lines, d["stereo_matched"] = t.stereo_matched;
+  d["new_lines"] = t.new_lines, d["stereo_matched"] = t.stereo_matched, d["stereo_guided"] = t.stereo_guided;
+  d["right_detected"] = t.right_detected;
   return d;
 }
 

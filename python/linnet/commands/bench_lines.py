@@ -29,8 +29,8 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
     # The gyroscope's rotation between frames (as the pipeline hands the tracker), when the dataset has imu0.
     rotations = [None] + [data.gyro_prediction(images[k - 1][0], images[k][0]) for k in range(1, len(images))]
     series = {s: [] for s in STAGES}
-    counts = {"lines": [], "stereo_matched": [], "tracked": [], "new_lines": [], "detected_left": [],
-              "detected_right": []}
+    counts = {"lines": [], "stereo_matched": [], "stereo_guided": [], "tracked": [], "new_lines": [],
+              "detected_left": [], "detected_right": []}
     final_length, age = {}, []
     tracker = None
     for rep in range(repeat):
@@ -46,8 +46,10 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
                 series[s].append(tm[s])
             if rep == 0:
                 counts["lines"].append(len(obs["id"]))
-                for c in ("stereo_matched", "tracked", "new_lines", "detected_left", "detected_right"):
+                for c in ("stereo_matched", "stereo_guided", "tracked", "new_lines", "detected_left"):
                     counts[c].append(tm[c])
+                if tm["right_detected"]:  # frames without the right image's detection would count as 0
+                    counts["detected_right"].append(tm["detected_right"])
                 for i, n in zip(obs["id"], obs["track_length"]):
                     final_length[int(i)] = int(n)
                 age.extend(int(n) for n in obs["track_length"])
@@ -138,9 +140,10 @@ def COMMAND(dataset, json_out, frames, detector, settings, repeat, mono, sim_sce
         click.echo(f"| {name[:-3]} | {s['median']:.2f} | {s['p95']:.2f} | {s['max']:.2f} |")
     c = res["counts_median"]
     tl = res["track_length"]
-    click.echo(f"median per frame: {c['lines']:.0f} lines, {c['stereo_matched']:.0f} stereo, {c['tracked']:.0f} "
+    click.echo(f"median per frame: {c['lines']:.0f} lines, {c['stereo_matched']:.0f} stereo "
+               f"({c['stereo_guided']:.0f} guided), {c['tracked']:.0f} "
                f"tracked, {c['new_lines']:.0f} new; detected {c['detected_left']:.0f} left / "
-               f"{c['detected_right']:.0f} right")
+               f"{c['detected_right']:.0f} right (on the frames with a right detection)")
     click.echo(f"track length: {tl['ids']} ids, median {tl['median_per_id']:.0f} (mean {tl['mean_per_id']:.1f}) "
                f"frames per id; median {tl['median_of_delivered_lines']:.0f} for the delivered lines")
     if json_out:

@@ -101,14 +101,16 @@ class LineDetector {
   std::vector<cv::Vec4f> raw_;
 };
 
-/// Sub-pixel refinement of one segment on a full-resolution 8-bit image: samples the directional derivative across
-/// the segment, locates the edge with a parabola fit, and fits a weighted total-least-squares line; endpoints are
-/// projected onto it. Also orients the segment by the sign of the gradient (see LineSegment). Returns false when too
-/// few samples respond (the segment is then left as it was, only oriented).
 /// Orients a segment by the mean sign of the gradient across it (see LineSegment); cheap (2 samples per position).
 void orientSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment);
 
-bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment);
+/// Sub-pixel refinement of one segment on a full-resolution 8-bit image: samples the directional derivative across
+/// the segment, locates the edge with a parabola fit, and fits a weighted total-least-squares line; endpoints are
+/// projected onto it. Also orients the segment by the sign of the gradient (see LineSegment). Returns false when too
+/// few samples respond (the segment is then left as it was, only oriented). support (optional): the fraction of the
+/// samples along the segment that found an edge within refine_search_px (0 when the refinement failed).
+bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment,
+                   double* support = nullptr);
 
 /// Parallel edges beside an oriented segment, on the full-resolution image: thin bars (frames, trims, the two sides of
 /// a narrow gap) have two edges 2-6 px apart that a detector on a downsampled image fuses into one. The directional

@@ -47,7 +47,18 @@ struct StereoMatchOptions {
   double min_overlap = 0.5;             // overlap of the left endpoints' epipolar span with the right segment
   double min_depth_m = 0.2;             // triangulated endpoint depth range in cam0, metres
   double max_depth_m = 60.0;
-
+  // The right image's full detection runs every detect_interval frames. In between, the guided pass: a line matched
+  // in cam1 within the last guided_max_age frames is predicted into this frame's right image from its triangulated
+  // endpoints (turned by the rotation predictions; translation is neglected, which shifts the prediction by a
+  // fraction of the disparity) through its current left segment, refined on the right image's edge and checked as a
+  // detected match is. Lines without such a match have no cam1 observation on that frame. A frame where fewer than
+  // guided_min_prior_fraction of the lines have such a prior is detected instead (and restarts the count).
+  int detect_interval = 2;              // 1: detection every frame, no guided pass
+  int guided_search_px = 3;             // refinement search across the predicted right segment, +- pixels
+  double guided_min_support = 0.6;      // fraction of the refinement's samples that must find the edge
+  int guided_max_hamming = 70;          // descriptor distance to the left segment, bits (256 = no check)
+  int guided_max_age = 3;               // frames since the line's last stereo match within which it is guided
+  double guided_min_prior_fraction = 0.5;  // a frame where fewer of the lines have a guided prior is detected
   template <class V>
   void visit(V& v) {
     v("max_hamming", max_hamming, "descriptor distance, bits", 0, 256);
@@ -57,6 +68,14 @@ struct StereoMatchOptions {
     v("min_overlap", min_overlap, "epipolar overlap ratio", 0.0, 1.0);
     v("min_depth_m", min_depth_m, "minimum depth, metres", 0.0, 1000.0);
     v("max_depth_m", max_depth_m, "maximum depth, metres", 0.01, 1e6);
+    v("detect_interval", detect_interval, "full right-image detection every n-th frame, guided pass between", 1,
+      1000);
+    v("guided_search_px", guided_search_px, "guided refinement search, +- pixels", 1, 10);
+    v("guided_min_support", guided_min_support, "guided refinement: fraction of samples on the edge", 0.0, 1.0);
+    v("guided_max_hamming", guided_max_hamming, "guided match: descriptor distance, bits (256 = no check)", 0, 256);
+    v("guided_max_age", guided_max_age, "guided pass: frames since the line's last stereo match", 1, 100);
+    v("guided_min_prior_fraction", guided_min_prior_fraction,
+      "fraction of the lines with a guided prior below which a frame is detected", 0.0, 1.0);
   }
 };
 
@@ -84,10 +103,12 @@ int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSeg
                   const std::function<const LbdDescriptor&(int)>& cur_desc, const Vec2& centre,
                   std::vector<int>* match_of_cur);
 
-/// Epipolar test of a left / right pair in normalised coordinates. On success, *overlap is the overlap ratio and
-/// q_s, q_e (optional) the points of the right line corresponding to the left endpoints.
+/// Epipolar test of a left / right pair in normalised coordinates. On success, *overlap is the overlap ratio,
+/// q_s, q_e (optional) the points of the right line corresponding to the left endpoints and depth (optional) the
+/// depths in cam0 of the left endpoints triangulated with them, metres.
 bool stereoGeometryOk(const StereoMatchOptions& options, const Mat3& E, const Pose& T_C1_C0, const LineSegment& left,
-                      const LineSegment& right, double* overlap, Vec2* q_s = nullptr, Vec2* q_e = nullptr);
+                      const LineSegment& right, double* overlap, Vec2* q_s = nullptr, Vec2* q_e = nullptr,
+                      Vec2* depth = nullptr);
 
 /// Geometric stage of matchStereo: every (left i, right j) pair whose directions agree and that passes
 /// stereoGeometryOk; `distance` is left 0 for the caller to fill.

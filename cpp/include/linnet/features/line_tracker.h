@@ -82,6 +82,10 @@ class LineTracker {
     int length = 1;        // frames in which this id was delivered (gaps of <= max_missed frames allowed)
     int missed = 0;        // frames since last seen (0 for delivered tracks)
     bool tentative = false;  // started this frame, not delivered until matched again (confirm_new)
+    std::int64_t stereo_frame = -1;  // index of the frame of its last stereo match (-1: none yet)
+    Vec3 stereo_s = Vec3::Zero();    // left endpoints triangulated with that match, metres, in cam0 of that frame
+                                     // turned by the rotation predictions since (the guided stereo pass's prior)
+    Vec3 stereo_e = Vec3::Zero();
   };
   const std::vector<Track>& tracks() const { return tracks_; }
 
@@ -94,18 +98,30 @@ class LineTracker {
   bool undistortSegment(const CameraModel& cam, const LineSegment& px, LineSegment* uv) const;
   // Moves a cam0 pixel segment by a pure rotation; false (segment untouched) when an endpoint cannot be mapped.
   bool rotateSegment(const Mat3& R_Ccur_Cprev, LineSegment* px) const;
+  // Guided stereo: the right segment (cam1 pixels) predicted for a track with a stereo prior, through its current
+  // left segment (normalised), clipped to cam1's image; false when degenerate, out of the depth range or too short.
+  bool predictRight(const Track& track, const LineSegment& left_uv, LineSegment* px) const;
+  // Turns a track's stereo prior by the rotation prediction into the current frame (translation is neglected).
+  void rotatePrior(const std::optional<Mat3>& R_Ccur_Cprev, Track* track) const;
+  // Matches left lines in the right image (out / left_uv / left_desc parallel, track_of_left into tracks_).
+  void matchRight(const cv::Mat& right, const std::vector<LineSegment>& left_uv,
+                  const std::vector<LbdDescriptor>& left_desc, const std::vector<int>& track_of_left,
+                  std::vector<LineObservation>* out, LineFrameTimings* tm);
 
   LineTrackerOptions options_;
   const CameraModel& cam0_;
   const CameraModel* cam1_;
   Pose T_C1_C0_;
   LineDetector detector_;
+  LineDetectorOptions guided_refine_;  // the detection's refinement with the guided search width
   std::vector<Track> tracks_;
   std::vector<Track> lost_;       // recently lost tracks (missed 1..max_missed frames)
   std::vector<Track> tentative_;  // started last frame, awaiting confirmation
   std::int64_t next_id_ = 0;
   Timestamp last_t_ = 0;
   bool has_last_ = false;
+  std::int64_t frame_index_ = 0;  // track() calls so far
+  int frames_since_detection_ = 0;  // stereo frames since the right image's last full detection
   LineFrameTimings timings_;
   std::optional<Mat3> R_pred_;
   // Scratch buffers reused across frames.

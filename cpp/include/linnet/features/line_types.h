@@ -51,6 +51,8 @@ struct LineFrameTimings {
   int tracked = 0;           // lines matched to the previous frame
   int new_lines = 0;         // new ids started this frame
   int stereo_matched = 0;    // output lines with a right observation
+  int stereo_guided = 0;     // of those, matched by the guided pass (predicted from the previous frame's match)
+  bool right_detected = false;  // the right image's full detection ran this frame
 };
 
 }  // namespace linnet
