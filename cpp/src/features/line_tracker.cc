@@ -351,14 +351,15 @@ void LineTracker::matchRight(const cv::Mat& right, const std::vector<LineSegment
 
   // The right image's full detection every detect_interval frames; in between, the guided pass: the lines matched
   // in the last frames, predicted and refined on the right image's edge. A frame where too few lines have such a
-  // prior (the first frames, a view that changed) is detected instead.
+  // prior, against the matches of the last detection (the first frames, a view that changed), is detected instead.
   auto hasPrior = [&](const Track& tr) {
     return tr.stereo_frame >= 0 && frame_index_ - tr.stereo_frame <= so.guided_max_age;
   };
   const auto with_prior = std::count_if(track_of_left.begin(), track_of_left.end(),
                                         [&](int ti) { return hasPrior(tracks_[ti]); });
-  const bool guided_frame = frames_since_detection_ + 1 < so.detect_interval &&
-                            static_cast<double>(with_prior) >= so.guided_min_prior_fraction * left_uv.size();
+  const bool guided_frame =
+      frames_since_detection_ + 1 < so.detect_interval && with_prior > 0 &&
+      static_cast<double>(with_prior) >= so.guided_min_prior_fraction * detection_matches_;
   if (left_uv.empty()) {
     ++frames_since_detection_;
   } else if (guided_frame) {
@@ -398,8 +399,8 @@ void LineTracker::matchRight(const cv::Mat& right, const std::vector<LineSegment
       c.distance = hammingDistance(left_desc[c.i], desc_r_[j]);
     }
     std::vector<int> match_of_left;
-    selectMutualBest(static_cast<int>(left_uv.size()), static_cast<int>(right_uv.size()), cands, so.max_hamming,
-                     so.ratio, &match_of_left);
+    detection_matches_ = selectMutualBest(static_cast<int>(left_uv.size()), static_cast<int>(right_uv.size()), cands,
+                                          so.max_hamming, so.ratio, &match_of_left);
     for (std::size_t k = 0; k < match_of_left.size(); ++k) {
       if (match_of_left[k] < 0) continue;
       const auto tr = Clock::now();

@@ -51,14 +51,15 @@ struct StereoMatchOptions {
   // in cam1 within the last guided_max_age frames is predicted into this frame's right image from its triangulated
   // endpoints (turned by the rotation predictions; translation is neglected, which shifts the prediction by a
   // fraction of the disparity) through its current left segment, refined on the right image's edge and checked as a
-  // detected match is. Lines without such a match have no cam1 observation on that frame. A frame where fewer than
-  // guided_min_prior_fraction of the lines have such a prior is detected instead (and restarts the count).
+  // detected match is. Lines without such a match have no cam1 observation on that frame. A frame where too few
+  // lines have such a prior is detected instead (and restarts the count).
   int detect_interval = 2;              // 1: detection every frame, no guided pass
   int guided_search_px = 3;             // refinement search across the predicted right segment, +- pixels
   double guided_min_support = 0.6;      // fraction of the refinement's samples that must find the edge
   int guided_max_hamming = 70;          // descriptor distance to the left segment, bits (256 = no check)
   int guided_max_age = 3;               // frames since the line's last stereo match within which it is guided
-  double guided_min_prior_fraction = 0.5;  // a frame where fewer of the lines have a guided prior is detected
+  double guided_min_prior_fraction = 0.5;  // a frame is detected when fewer of its lines have a guided prior than
+                                           // this fraction of the last detection's matches (or none has one)
   template <class V>
   void visit(V& v) {
     v("max_hamming", max_hamming, "descriptor distance, bits", 0, 256);
@@ -75,7 +76,7 @@ struct StereoMatchOptions {
     v("guided_max_hamming", guided_max_hamming, "guided match: descriptor distance, bits (256 = no check)", 0, 256);
     v("guided_max_age", guided_max_age, "guided pass: frames since the line's last stereo match", 1, 100);
     v("guided_min_prior_fraction", guided_min_prior_fraction,
-      "fraction of the lines with a guided prior below which a frame is detected", 0.0, 1.0);
+      "lines with a guided prior / last detection's matches below which a frame is detected", 0.0, 1.0);
   }
 };
 

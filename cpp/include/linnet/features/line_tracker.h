@@ -122,6 +122,7 @@ class LineTracker {
   bool has_last_ = false;
   std::int64_t frame_index_ = 0;  // track() calls so far
   int frames_since_detection_ = 0;  // stereo frames since the right image's last full detection
+  int detection_matches_ = 0;       // stereo matches of the last full detection (before the final tests)
   LineFrameTimings timings_;
   std::optional<Mat3> R_pred_;
   // Scratch buffers reused across frames.
