@@ -31,7 +31,7 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
     series = {s: [] for s in STAGES}
     counts = {"lines": [], "stereo_matched": [], "stereo_guided": [], "tracked": [], "new_lines": [],
               "detected_left": [], "detected_right": []}
-    final_length, age = {}, []
+    final_length, age, right_detected = {}, [], []
     tracker = None
     for rep in range(repeat):
         tracker = lines.make_tracker(data, options, mono=mono)
@@ -48,6 +48,7 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
                 counts["lines"].append(len(obs["id"]))
                 for c in ("stereo_matched", "stereo_guided", "tracked", "new_lines", "detected_left"):
                     counts[c].append(tm[c])
+                right_detected.append(bool(tm["right_detected"]))
                 if tm["right_detected"]:  # frames without the right image's detection would count as 0
                     counts["detected_right"].append(tm["detected_right"])
                 for i, n in zip(obs["id"], obs["track_length"]):
@@ -59,6 +60,8 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
         "options": tracker.options() if tracker is not None else {},
         "stages_ms": table,
         "counts_median": {k: float(np.median(v)) if v else 0.0 for k, v in counts.items()},
+        "stereo_guided_mean": float(np.mean(counts["stereo_guided"])) if counts["stereo_guided"] else 0.0,
+        "right_detected_fraction": float(np.mean(right_detected)) if right_detected else 0.0,
         "track_length": {
             "ids": len(final_length),
             "median_per_id": float(np.median(list(final_length.values()))) if final_length else 0.0,
@@ -141,9 +144,10 @@ def COMMAND(dataset, json_out, frames, detector, settings, repeat, mono, sim_sce
     c = res["counts_median"]
     tl = res["track_length"]
     click.echo(f"median per frame: {c['lines']:.0f} lines, {c['stereo_matched']:.0f} stereo "
-               f"({c['stereo_guided']:.0f} guided), {c['tracked']:.0f} "
+               f"({res['stereo_guided_mean']:.1f} guided on average), {c['tracked']:.0f} "
                f"tracked, {c['new_lines']:.0f} new; detected {c['detected_left']:.0f} left / "
-               f"{c['detected_right']:.0f} right (on the frames with a right detection)")
+               f"{c['detected_right']:.0f} right (on the {100 * res['right_detected_fraction']:.0f} % of frames with a "
+               f"right detection)")
     click.echo(f"track length: {tl['ids']} ids, median {tl['median_per_id']:.0f} (mean {tl['mean_per_id']:.1f}) "
                f"frames per id; median {tl['median_of_delivered_lines']:.0f} for the delivered lines")
     if json_out:
