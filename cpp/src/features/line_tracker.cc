@@ -13,6 +13,7 @@
 
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
+#include "linnet/geometry/plucker.h"
 
 namespace linnet {
 namespace {
@@ -44,15 +45,6 @@ bool duplicatesTrack(const LineSegment& seg, const std::vector<LineTracker::Trac
     return true;
   }
   return false;
-}
-
-// Depth along the ray (x, 1) of its closest point to the line through a and b; NaN when they are nearly parallel.
-double depthNearLine(const Vec2& x, const Vec3& a, const Vec3& b) {
-  const Vec3 r(x.x(), x.y(), 1.0), u = b - a;
-  const double rr = r.dot(r), ru = r.dot(u), uu = u.dot(u);
-  const double det = rr * uu - ru * ru;
-  if (!(det > 1e-9 * rr * uu)) return std::numeric_limits<double>::quiet_NaN();
-  return (uu * r.dot(a) - ru * u.dot(a)) / det;
 }
 
 }  // namespace
@@ -282,11 +274,13 @@ void LineTracker::rotatePrior(const std::optional<Mat3>& R_Ccur_Cprev, Track* tr
 bool LineTracker::predictRight(const Track& track, const LineSegment& left_uv, LineSegment* px) const {
   // The line as triangulated at its last match, turned into this frame; each current left endpoint takes the depth of
   // its ray's closest point to it (the line's current image is the left segment, so only depths are needed).
-  const Vec3 &a = track.stereo_s, &b = track.stereo_e;
+  const Vec6 L = pluckerFromPoints(track.stereo_s, track.stereo_e);
   const Vec2 ends[2] = {left_uv.s, left_uv.e};
   Vec2 out[2];
   for (int k = 0; k < 2; ++k) {
-    const double z = depthNearLine(ends[k], a, b);
+    // The ray is (x, y, 1) from the camera centre, so its parameter is the depth.
+    const std::optional<RayLinePoint> p = closestPointToRay(L, Vec3::Zero(), Vec3(ends[k].x(), ends[k].y(), 1.0));
+    const double z = p ? p->ray_t : std::numeric_limits<double>::quiet_NaN();
     if (!(z >= options_.stereo.min_depth_m && z <= options_.stereo.max_depth_m)) return false;
     const Vec3 p1 = T_C1_C0_ * (z * Vec3(ends[k].x(), ends[k].y(), 1.0));
     if (!cam1_->project(p1, &out[k]) || !std::isfinite(out[k].sum())) return false;
