@@ -142,59 +142,55 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
 
 void PointTracker::trackTemporal(double dt) {
   const std::size_t n = tracks_.size();
-  std::vector<cv::Point2f> prev(n), cur(n);
+  std::vector<cv::Point2f> prev(n), cur(n), rotated(n), start(n);
   const bool predict = R_pred_.has_value() && opt_.use_rotation_prediction;
   stats_.used_rotation_prediction = predict;
+  const float flow_dt = opt_.klt_flow_prediction ? static_cast<float>(dt) : 0.f;
   for (std::size_t i = 0; i < n; ++i) {
     prev[i] = tracks_[i].px;
-    cur[i] = prev[i];
+    rotated[i] = prev[i];
     if (predict) {
       const Vec3 a = *R_pred_ * Vec3(tracks_[i].uv.x(), tracks_[i].uv.y(), 1.0);
       if (a.z() > 1e-6) {
         const Vec2 px = cam0_.distort(Vec2(a.x() / a.z(), a.y() / a.z()));
-        if (cam0_.inImage(px)) cur[i] = toCv(px);
+        if (cam0_.inImage(px)) rotated[i] = toCv(px);
       }
     }
+    // Constant translational flow: the track's last motion beyond the rotation, carried over the frame interval.
+    const cv::Point2f moved = rotated[i] + tracks_[i].flow * flow_dt;
+    start[i] = cam0_.inImage(toEigen(moved)) ? moved : rotated[i];
+    cur[i] = start[i];
   }
-  const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
-  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, opt_.klt_max_iterations,
-                              opt_.klt_epsilon);
-  std::vector<unsigned char> st_f, st_b;
-  // The KLT error output is not used: cv::noArray() spares OpenCV computing it.
-  cv::calcOpticalFlowPyrLK(pyr_prev_, pyr_cur_, prev, cur, st_f, cv::noArray(), win, opt_.klt_pyramid_levels,
-                           crit, cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
-  // Backward check, only for the points the forward pass kept (and inside the image). It starts at the previous
-  // position; fewer levels are cheaper but weaker (VINS-Fusion uses 1).
-  std::vector<cv::Point2f> fwd, back;
-  std::vector<std::size_t> fwd_idx;
-  for (std::size_t i = 0; i < n; ++i)
-    if (st_f[i] && cam0_.inImage(toEigen(cur[i]), opt_.border_px)) {
-      fwd_idx.push_back(i);
-      fwd.push_back(cur[i]);
-      back.push_back(prev[i]);
-    }
-  if (!fwd.empty())
-    cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, cv::noArray(), win,
-                             std::min(opt_.fb_pyramid_levels, opt_.klt_pyramid_levels), crit,
-                             cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
+  // Tracks started from their own flow need few pyramid levels; fresh tracks (no flow yet) get all of them, and so do
+  // the predicted tracks that the small pyramid loses (a prediction off by more than its reach).
   std::vector<unsigned char> ok(n, 0);
-  const double fb2 = opt_.fb_threshold_px * opt_.fb_threshold_px;
-  for (std::size_t k = 0; k < fwd_idx.size(); ++k) {
-    const cv::Point2f d = back[k] - prev[fwd_idx[k]];
-    ok[fwd_idx[k]] = st_b[k] && d.dot(d) <= fb2;
+  std::vector<std::size_t> predicted, full;
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool has_flow = opt_.klt_flow_prediction && tracks_[i].length >= 2;
+    (has_flow && opt_.klt_predicted_levels < opt_.klt_pyramid_levels ? predicted : full).push_back(i);
   }
+  kltForwardBackward(prev, start, predicted, opt_.klt_predicted_levels, &cur, &ok);
+  for (std::size_t i : predicted)
+    if (!ok[i]) full.push_back(i);
+  stats_.klt_retried = static_cast<int>(full.size() - (n - predicted.size()));
+  std::sort(full.begin(), full.end());
+  kltForwardBackward(prev, start, full, opt_.klt_pyramid_levels, &cur, &ok);
 
   std::vector<Track> kept;
   std::vector<Vec2> uv_prev;
+  std::vector<float> start_error;
   kept.reserve(n);
   uv_prev.reserve(n);
+  start_error.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
     Vec2 uv;
     if (!ok[i] || !cam0_.undistort(toEigen(cur[i]), &uv)) {
       ++stats_.klt_failed;
       continue;
     }
+    start_error.push_back(static_cast<float>(cv::norm(cur[i] - start[i])));
     Track tr = tracks_[i];
+    tr.flow = dt > 0.0 ? (cur[i] - rotated[i]) / static_cast<float>(dt) : cv::Point2f(0.f, 0.f);
     uv_prev.push_back(tr.uv);
     // Stereo prior for this frame: last frame's right match moved by this frame's left flow.
     tr.right_prior = tr.has_right || tr.stereo_skipped;
@@ -206,8 +202,55 @@ void PointTracker::trackTemporal(double dt) {
     ++tr.length;
     kept.push_back(tr);
   }
+  if (!start_error.empty()) {
+    const auto mid = start_error.begin() + static_cast<std::ptrdiff_t>(start_error.size() / 2);
+    std::nth_element(start_error.begin(), mid, start_error.end());
+    stats_.klt_start_error_px = *mid;
+  }
   tracks_ = std::move(kept);
   rejectOutliers(uv_prev);
+}
+
+void PointTracker::kltForwardBackward(const std::vector<cv::Point2f>& prev, const std::vector<cv::Point2f>& start,
+                                      const std::vector<std::size_t>& which, int levels, std::vector<cv::Point2f>* cur,
+                                      std::vector<unsigned char>* ok) const {
+  if (which.empty()) return;
+  const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
+  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, opt_.klt_max_iterations,
+                              opt_.klt_epsilon);
+  std::vector<cv::Point2f> from, to;
+  from.reserve(which.size());
+  to.reserve(which.size());
+  for (std::size_t i : which) {
+    from.push_back(prev[i]);
+    to.push_back(start[i]);
+  }
+  std::vector<unsigned char> st_f, st_b;
+  // The KLT error output is not used: cv::noArray() spares OpenCV computing it.
+  cv::calcOpticalFlowPyrLK(pyr_prev_, pyr_cur_, from, to, st_f, cv::noArray(), win, levels, crit,
+                           cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
+  // Backward check, only for the points the forward pass kept (and inside the image). It starts at the previous
+  // position; fewer levels are cheaper but weaker (VINS-Fusion uses 1).
+  std::vector<cv::Point2f> fwd, back;
+  std::vector<std::size_t> fwd_idx;
+  for (std::size_t k = 0; k < which.size(); ++k) {
+    (*cur)[which[k]] = to[k];
+    (*ok)[which[k]] = 0;
+    if (st_f[k] && cam0_.inImage(toEigen(to[k]), opt_.border_px)) {
+      fwd_idx.push_back(k);
+      fwd.push_back(to[k]);
+      back.push_back(from[k]);
+    }
+  }
+  if (fwd.empty()) return;
+  cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, cv::noArray(), win,
+                           std::min(opt_.fb_pyramid_levels, levels), crit, cv::OPTFLOW_USE_INITIAL_FLOW,
+                           opt_.klt_min_eigen);
+  const double fb2 = opt_.fb_threshold_px * opt_.fb_threshold_px;
+  for (std::size_t j = 0; j < fwd_idx.size(); ++j) {
+    const cv::Point2f d = back[j] - from[fwd_idx[j]];
+    (*ok)[which[fwd_idx[j]]] = st_b[j] && d.dot(d) <= fb2;
+  }
 }
 
 void PointTracker::rejectOutliers(const std::vector<Vec2>& uv_prev) {
@@ -274,6 +317,7 @@ void PointTracker::replenish(const cv::Mat& image) {
     tr.px = p;
     tr.uv = uv;
     tr.velocity = Vec2::Zero();
+    tr.flow = cv::Point2f(0.f, 0.f);
     tr.length = 1;
     tr.has_right = false;
     tr.right_prior = false;
@@ -291,13 +335,16 @@ void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool
   const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
   cv::Mat sl = left, sr = right_in;
   const std::vector<cv::Mat>* pyr_left = &pyr_cur_;
+  // Stereo matching reads no level above its search level (its KLT stops there too, see matchStereoPoints): the
+  // stereo-only pyramids end there.
+  const int stereo_levels = std::min(opt_.klt_pyramid_levels, std::max(1, opt_.stereo_search_level));
   stats_.used_stereo_clahe = stereo_clahe || opt_.clahe;
   if (stereo_clahe) {
     sl = cv::Mat();
     sr = cv::Mat();
     clahe_->apply(left, sl);
     clahe_->apply(right_in, sr);
-    cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+    cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, stereo_levels, true, cv::BORDER_REFLECT_101,
                                 cv::BORDER_CONSTANT, false);
     pyr_left = &pyr_left_stereo_;
   } else if (opt_.clahe) {
@@ -317,7 +364,7 @@ void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool
       sr = adjusted;
     }
   }
-  cv::buildOpticalFlowPyramid(sr, pyr_right_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+  cv::buildOpticalFlowPyramid(sr, pyr_right_, win, stereo_levels, true, cv::BORDER_REFLECT_101,
                               cv::BORDER_CONSTANT, false);
   matchStereo(*pyr_left);
 }

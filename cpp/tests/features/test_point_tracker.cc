@@ -283,6 +283,95 @@ TEST(PointTracker, RotationPredictionFollowsLargeRotation) {
   }
 }
 
+TEST(PointTracker, FlowPredictionFollowsSteadyTranslation) {
+  // The image slides right by 5, 10, 15 and 20 px per frame: one KLT level (no pyramid) reaches about half its
+  // window (7 px), so only a start carried on by each track's last flow (then 5 px off) keeps the tracks.
+  const auto cam = pinhole(640, 480);
+  const cv::Mat img0 = texturedImage(640, 480, 23);
+  for (const bool flow : {false, true}) {
+    PointTrackerOptions opt;
+    opt.clahe = false;
+    opt.klt_pyramid_levels = 0;
+    opt.fb_pyramid_levels = 0;
+    opt.klt_flow_prediction = flow;
+    PointTracker tracker(opt, *cam, nullptr, Pose());
+    std::vector<PointObservation> obs;
+    tracker.track(0, img0, cv::Mat(), &obs);
+    std::map<std::int64_t, Vec2> first;
+    for (const auto& o : obs) first[o.id] = o.px0;
+    double total = 0.0;
+    for (int k = 1; k <= 4; ++k) {
+      const double step = 5.0 * k;
+      total += step;
+      cv::Mat img;
+      const cv::Mat A = (cv::Mat_<double>(2, 3) << 1, 0, total, 0, 1, 0);
+      cv::warpAffine(img0, img, A, img0.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT_101);
+      obs.clear();
+      tracker.track(k * 50'000'000LL, img, cv::Mat(), &obs);
+      int kept = 0;  // tracks from the first frame still tracked, and where they should be
+      std::vector<double> err;
+      for (const auto& o : obs) {
+        const auto f = first.find(o.id);
+        if (f == first.end()) continue;
+        ++kept;
+        err.push_back((o.px0 - f->second - Vec2(total, 0.0)).norm());
+      }
+      if (k == 1) {  // no flow yet: both start 5 px off
+        EXPECT_NEAR(tracker.lastStats().klt_start_error_px, 5.0, 0.1) << flow;
+        continue;
+      }
+      if (flow) {
+        EXPECT_NEAR(tracker.lastStats().klt_start_error_px, 5.0, 0.1) << k;
+        EXPECT_GE(kept, 90) << k;
+        EXPECT_LT(median(err), 0.05) << k;
+      } else if (k >= 3) {
+        EXPECT_LT(kept, 30) << k;  // 15 px and more: out of reach
+      }
+    }
+  }
+}
+
+TEST(PointTracker, LostPredictionsAreTrackedAgainWithTheFullPyramid) {
+  // Steady 20 px per frame, tracked from the flow with one level (no pyramid); then the image stops, the flow
+  // prediction is 20 px off, out of that level's reach: the full pyramid (3 levels) takes those tracks over.
+  const auto cam = pinhole(640, 480);
+  const cv::Mat img0 = texturedImage(640, 480, 29);
+  PointTrackerOptions opt;
+  opt.clahe = false;
+  opt.klt_predicted_levels = 0;
+  ASSERT_EQ(opt.klt_pyramid_levels, 3);
+  PointTracker tracker(opt, *cam, nullptr, Pose());
+  std::vector<PointObservation> obs;
+  tracker.track(0, img0, cv::Mat(), &obs);
+  std::map<std::int64_t, Vec2> first;
+  for (const auto& o : obs) first[o.id] = o.px0;
+  const double shifts[] = {20.0, 40.0, 40.0};
+  for (int k = 1; k <= 3; ++k) {
+    cv::Mat img;
+    const cv::Mat A = (cv::Mat_<double>(2, 3) << 1, 0, shifts[k - 1], 0, 1, 0);
+    cv::warpAffine(img0, img, A, img0.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT_101);
+    obs.clear();
+    tracker.track(k * 50'000'000LL, img, cv::Mat(), &obs);
+    int kept = 0;
+    std::vector<double> err;
+    for (const auto& o : obs) {
+      const auto f = first.find(o.id);
+      if (f == first.end()) continue;
+      ++kept;
+      err.push_back((o.px0 - f->second - Vec2(shifts[k - 1], 0.0)).norm());
+    }
+    EXPECT_GE(kept, 100) << k;
+    EXPECT_LT(median(err), 0.05) << k;
+    if (k == 2) {
+      EXPECT_LT(tracker.lastStats().klt_retried, 10);  // the prediction was right
+    }
+    if (k == 3) {
+      EXPECT_NEAR(tracker.lastStats().klt_start_error_px, 20.0, 0.1);
+      EXPECT_GE(tracker.lastStats().klt_retried, kept * 3 / 4);
+    }
+  }
+}
+
 TEST(PointTracker, AdaptiveStereoClaheIsDroppedWhenRawImagesMatch) {
   // A textured fronto-parallel plane 2 m away seen by a rig with an 11 cm baseline: the raw pair matches nearly
   // every track, so the adaptive mode leaves CLAHE after its first raw try; with adaptivity off it stays on.

@@ -44,6 +44,12 @@ struct PointTrackerOptions {
   double ransac_confidence = 0.99;       // RANSAC stopping confidence
   int ransac_max_iterations = 200;       // hypotheses at most
   bool use_rotation_prediction = true;   // seed KLT with the predicted rotation when setRotationPrediction() was called
+  bool klt_flow_prediction = true;       // also add each track's last motion beyond that rotation (its translational
+                                         // flow, pixels per second, times the frame interval) to the KLT's start
+  int klt_predicted_levels = 1;          // pyramid levels above full resolution for the tracks started from their
+                                         // own flow (the start is then about a pixel off, so the coarse levels only
+                                         // cost time); the tracks they lose are tracked again with all
+                                         // klt_pyramid_levels
   // Replenishment
   std::string detector = "fast";         // "fast" | "shi_tomasi"
   int fast_threshold = 20;               // FAST intensity threshold, 0..255 (lowered automatically down to 5)
@@ -101,6 +107,8 @@ struct PointTrackerOptions {
     v("ransac_confidence", ransac_confidence, "RANSAC stopping confidence", 0.5, 0.999999);
     v("ransac_max_iterations", ransac_max_iterations, "RANSAC hypotheses at most", 1, 100000);
     v("use_rotation_prediction", use_rotation_prediction, "seed KLT with the IMU rotation prediction");
+    v("klt_flow_prediction", klt_flow_prediction, "seed KLT with each track's last translational flow as well");
+    v("klt_predicted_levels", klt_predicted_levels, "KLT pyramid levels for tracks started from their own flow", 0, 8);
     v.choice("detector", detector, "corner detector for replenishment", {"fast", "shi_tomasi"});
     v("fast_threshold", fast_threshold, "FAST intensity threshold", 1, 255);
     v("min_new_points", min_new_points, "replenish only when at least this many tracks are missing", 1, 5000);
@@ -146,6 +154,8 @@ struct PointTrackerStats {
   int stereo_epipolar_rejected = 0;
   int stereo_depth_rejected = 0;  // negative or below stereo_min_depth_m
   bool used_rotation_prediction = false;
+  double klt_start_error_px = 0.0;  // median distance of the tracked points from where KLT started, pixels
+  int klt_retried = 0;               // flow-predicted tracks lost with klt_predicted_levels, tracked again with all
   bool used_stereo_clahe = false;  // stereo matching ran on CLAHE copies this frame
   double ms = 0.0;         // wall time of track(), milliseconds
 };
@@ -182,6 +192,7 @@ class PointTracker {
     cv::Point2f px;       // distorted pixel in cam0
     Vec2 uv;              // normalised in cam0
     Vec2 velocity;        // normalised units per second
+    cv::Point2f flow;     // last frame's motion beyond the rotation prediction, distorted pixels per second
     int length;
     bool has_right;
     cv::Point2f px1;      // distorted pixel in cam1 (valid if has_right)
@@ -193,6 +204,11 @@ class PointTracker {
   };
 
   void trackTemporal(double dt);
+  // KLT of the tracks `which` from prev to their start positions in the current frame with `levels` pyramid levels,
+  // then the backward check: writes their results into *cur and *ok.
+  void kltForwardBackward(const std::vector<cv::Point2f>& prev, const std::vector<cv::Point2f>& start,
+                          const std::vector<std::size_t>& which, int levels, std::vector<cv::Point2f>* cur,
+                          std::vector<unsigned char>* ok) const;
   void rejectOutliers(const std::vector<Vec2>& uv_prev);
   void replenish(const cv::Mat& image);
   // Stereo matching of the current tracks; stereo_clahe: on CLAHE copies of both images (left: the raw left image).
