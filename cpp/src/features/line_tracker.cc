@@ -31,20 +31,42 @@ double threadCpuMs() {
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
-// True when `seg` lies on one of the tracks (same direction within 5 degrees, both endpoints within 3 px of its
-// line, overlapping it): a second detection of a tracked edge must not start a new id.
+// True when `seg` lies on `other` (same direction within 5 degrees, both endpoints within 3 px of its line,
+// overlapping it).
+bool liesOn(const LineSegment& seg, const LineSegment& other) {
+  const Vec2 td = other.direction();
+  if (std::abs(td.dot(seg.direction())) < 0.996) return false;
+  const Vec2 n(-td.y(), td.x());
+  if (std::abs((seg.s - other.s).dot(n)) > 3.0 || std::abs((seg.e - other.s).dot(n)) > 3.0) return false;
+  const double a = (seg.s - other.s).dot(td), b = (seg.e - other.s).dot(td);
+  return !(std::max(a, b) < -5.0 || std::min(a, b) > other.length() + 5.0);
+}
+
+// True when `seg` lies on one of the tracks: a second detection of a tracked edge must not start a new id.
 bool duplicatesTrack(const LineSegment& seg, const std::vector<LineTracker::Track>& tracks) {
-  const Vec2 d = seg.direction();
-  for (const LineTracker::Track& t : tracks) {
-    const Vec2 td = t.px.direction();
-    if (std::abs(td.dot(d)) < 0.996) continue;
-    const Vec2 n(-td.y(), td.x());
-    if (std::abs((seg.s - t.px.s).dot(n)) > 3.0 || std::abs((seg.e - t.px.s).dot(n)) > 3.0) continue;
-    const double a = (seg.s - t.px.s).dot(td), b = (seg.e - t.px.s).dot(td);
-    if (std::max(a, b) < -5.0 || std::min(a, b) > t.px.length() + 5.0) continue;
-    return true;
+  return std::any_of(tracks.begin(), tracks.end(), [&](const LineTracker::Track& t) { return liesOn(seg, t.px); });
+}
+
+// Keeps the part of a pixel segment inside the image less `margin` pixels (Liang-Barsky clipping); false when none is.
+bool clipToImage(const CameraModel& cam, double margin, LineSegment* seg) {
+  const Vec2 lo(margin, margin), hi(cam.width() - 1.0 - margin, cam.height() - 1.0 - margin);
+  const Vec2 d = seg->e - seg->s;
+  double t0 = 0.0, t1 = 1.0;
+  for (int ax = 0; ax < 2; ++ax) {
+    if (std::abs(d[ax]) < 1e-12) {
+      if (seg->s[ax] < lo[ax] || seg->s[ax] > hi[ax]) return false;
+      continue;
+    }
+    double ta = (lo[ax] - seg->s[ax]) / d[ax], tb = (hi[ax] - seg->s[ax]) / d[ax];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
   }
-  return false;
+  if (!(t1 > t0)) return false;
+  const Vec2 s0 = seg->s;
+  seg->s = s0 + t0 * d;
+  seg->e = s0 + t1 * d;
+  return true;
 }
 
 }  // namespace
@@ -55,6 +77,8 @@ LineTracker::LineTracker(const LineTrackerOptions& options, const CameraModel& c
   validateOptions(options_, "lines");
   guided_refine_ = options_.detection;
   guided_refine_.refine_search_px = options_.stereo.guided_search_px;
+  predicted_refine_ = options_.detection;
+  predicted_refine_.refine_search_px = options_.temporal.predicted_search_px;
   if (options_.stereo.min_depth_m >= options_.stereo.max_depth_m)
     throw ConfigError("config key 'lines.stereo.min_depth_m' must be below 'lines.stereo.max_depth_m'");
   if (cam1_ != nullptr && T_C1_C0_.p.norm() < 1e-6)
@@ -121,9 +145,8 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   if (stereo) checkImage(right, *cam1_, "right");
   LineFrameTimings tm;
 
-  // Left image: detect, merge; descriptors on demand (temporal candidates and the segments chosen as new tracks).
-  detectAndMerge(left, &segs_l_, &desc_l_, &described_l_, &tm);
-  tm.detected_left = static_cast<int>(segs_l_.size());
+  // Left image: detect, merge (or predict the previous frame's lines, temporal.detect_interval); descriptors on
+  // demand (temporal candidates and the segments chosen as new tracks).
   double describe_left_ms = 0.0;
   auto leftDesc = [&](int i) -> const LbdDescriptor& {
     if (!described_l_[i]) {
@@ -137,6 +160,7 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
 
   // Temporal matching against the lines delivered last frame.
   auto t0 = Clock::now();
+  const double stages_at_t0 = tm.detect_ms + tm.merge_ms + tm.describe_ms;
   // Candidates: the lines delivered last frame, then the recently lost ones (missed for <= max_missed frames).
   std::vector<const Track*> prev;
   prev.reserve(tracks_.size() + lost_.size() + tentative_.size());
@@ -153,9 +177,26 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     if (R_pred) rotateSegment(*R_pred, &prev_segs[k]);
   }
   std::vector<int> match_of_cur;
-  const Vec2 centre(0.5 * (left.cols - 1), 0.5 * (left.rows - 1));
-  tm.tracked = matchTemporal(options_.temporal, prev_segs, prev_desc, segs_l_,
-                             std::function<const LbdDescriptor&(int)>(leftDesc), centre, &match_of_cur);
+  const double dt = has_last_ ? toSeconds(t - last_t_) : 0.0;
+  const TemporalMatchOptions& to = options_.temporal;
+  bool detect_left = true;
+  if (to.detect_interval > 1 && frames_since_left_detection_ + 1 < to.detect_interval && !tracks_.empty()) {
+    const int found = predictLeft(left, prev, prev_segs, dt, &match_of_cur, &tm);
+    detect_left = found < to.predicted_min_fraction * static_cast<double>(tracks_.size());
+    if (!detect_left) tm.tracked = tm.left_predicted = found;
+  }
+  if (detect_left) {
+    frames_since_left_detection_ = 0;
+    detectAndMerge(left, &segs_l_, &desc_l_, &described_l_, &tm);
+    tm.detected_left = static_cast<int>(segs_l_.size());
+    const Vec2 centre(0.5 * (left.cols - 1), 0.5 * (left.rows - 1));
+    match_of_cur.clear();
+    tm.tracked = matchTemporal(to, prev_segs, prev_desc, segs_l_, std::function<const LbdDescriptor&(int)>(leftDesc),
+                               centre, &match_of_cur);
+  } else {
+    ++frames_since_left_detection_;
+    tm.left_detected = false;
+  }
   std::vector<Track> next;
   next.reserve(options_.max_lines);
   std::vector<char> used(segs_l_.size(), 0), prev_matched(prev.size(), 0);
@@ -164,6 +205,9 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     const Track& old = *prev[match_of_cur[i]];
     Track t = old;  // keeps its stereo prior, turned into this frame
     rotatePrior(R_pred, &t);
+    // Its motion beyond the rotation since it was last seen (the rotation-predicted segment stands for that).
+    const double span = dt * (1 + old.missed);
+    t.flow = span > 0.0 ? Vec2((segs_l_[i].midpoint() - prev_segs[match_of_cur[i]].midpoint()) / span) : Vec2::Zero();
     t.px = segs_l_[i];
     t.desc = leftDesc(static_cast<int>(i));
     ++t.length;
@@ -223,7 +267,7 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   tentative_.swap(tentative);
   std::sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.id < b.id; });
   tracks_.swap(next);
-  tm.temporal_ms = msSince(t0) - describe_left_ms;
+  tm.temporal_ms = msSince(t0) - describe_left_ms - (tm.detect_ms + tm.merge_ms + tm.describe_ms - stages_at_t0);
   tm.describe_ms += describe_left_ms;
   t0 = Clock::now();
   for (Track& tr : tracks_) refine(left, &tr.px);
@@ -265,6 +309,43 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   timings_ = tm;
 }
 
+int LineTracker::predictLeft(const cv::Mat& left, const std::vector<const Track*>& prev,
+                             const std::vector<LineSegment>& prev_segs, double dt, std::vector<int>* match_of_cur,
+                             LineFrameTimings* tm) {
+  const TemporalMatchOptions& to = options_.temporal;
+  segs_l_.clear();
+  desc_l_.clear();
+  described_l_.clear();
+  match_of_cur->clear();
+  for (std::size_t k = 0; k < prev.size(); ++k) {
+    const Track& tr = *prev[k];
+    LineSegment seg = prev_segs[k];
+    if (!(seg.length() > 1.0)) continue;
+    // Moved across itself by its last flow (along the line a segment's ends are not observed: that part is noise).
+    const Vec2 d = seg.direction(), n(-d.y(), d.x());
+    const Vec2 shift = n * (n.dot(tr.flow) * dt * (1 + tr.missed));
+    seg.s += shift;
+    seg.e += shift;
+    const auto tr0 = Clock::now();
+    double support = 0.0;
+    const bool ok = clipToImage(cam0_, 2.0, &seg) && seg.length() >= options_.detection.min_length_px &&
+                    refineSegment(left, predicted_refine_, &seg, &support) && support >= to.predicted_min_support;
+    tm->detect_ms += msSince(tr0);
+    if (!ok) continue;
+    // Two lines refined onto one edge: the first (the older delivered track) keeps it.
+    if (std::any_of(segs_l_.begin(), segs_l_.end(), [&](const LineSegment& o) { return liesOn(seg, o); })) continue;
+    const auto td = Clock::now();
+    const LbdDescriptor desc = binarizeLbd(computeLbdFloat(left, options_.lbd, seg));
+    tm->describe_ms += msSince(td);
+    if (to.predicted_max_hamming < 256 && hammingDistance(desc, tr.desc) > to.predicted_max_hamming) continue;
+    segs_l_.push_back(seg);
+    desc_l_.push_back(desc);
+    described_l_.push_back(1);
+    match_of_cur->push_back(static_cast<int>(k));
+  }
+  return static_cast<int>(segs_l_.size());
+}
+
 void LineTracker::rotatePrior(const std::optional<Mat3>& R_Ccur_Cprev, Track* track) const {
   if (!R_Ccur_Cprev || track->stereo_frame < 0) return;
   track->stereo_s = *R_Ccur_Cprev * track->stereo_s;
@@ -285,25 +366,10 @@ bool LineTracker::predictRight(const Track& track, const LineSegment& left_uv, L
     const Vec3 p1 = T_C1_C0_ * (z * Vec3(ends[k].x(), ends[k].y(), 1.0));
     if (!cam1_->project(p1, &out[k]) || !std::isfinite(out[k].sum())) return false;
   }
-  // Keep the part inside cam1's image (the right camera sees less of the scene on one side): Liang-Barsky clipping.
-  const double margin = 2.0;
-  const Vec2 lo(margin, margin), hi(cam1_->width() - 1.0 - margin, cam1_->height() - 1.0 - margin);
-  const Vec2 d = out[1] - out[0];
-  double t0 = 0.0, t1 = 1.0;
-  for (int ax = 0; ax < 2; ++ax) {
-    if (std::abs(d[ax]) < 1e-12) {
-      if (out[0][ax] < lo[ax] || out[0][ax] > hi[ax]) return false;
-      continue;
-    }
-    double ta = (lo[ax] - out[0][ax]) / d[ax], tb = (hi[ax] - out[0][ax]) / d[ax];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-  }
-  if (!(t1 > t0)) return false;
-  px->s = out[0] + t0 * d;
-  px->e = out[0] + t1 * d;
-  return px->length() >= options_.detection.min_length_px;
+  // Keep the part inside cam1's image (the right camera sees less of the scene on one side).
+  px->s = out[0];
+  px->e = out[1];
+  return clipToImage(*cam1_, 2.0, px) && px->length() >= options_.detection.min_length_px;
 }
 
 void LineTracker::matchRight(const cv::Mat& right, const std::vector<LineSegment>& left_uv, const std::vector<LbdDescriptor>& left_desc,

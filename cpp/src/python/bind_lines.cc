@@ -167,6 +167,7 @@ py::dict timingsToDict(const LineFrameTimings& t) {
   d["detected_left"] = t.detected_left, d["detected_right"] = t.detected_right, d["tracked"] = t.tracked;
   d["new_lines"] = t.new_lines, d["stereo_matched"] = t.stereo_matched, d["stereo_guided"] = t.stereo_guided;
   d["right_detected"] = t.right_detected;
+  d["left_detected"] = t.left_detected, d["left_predicted"] = t.left_predicted;
   return d;
 }
 

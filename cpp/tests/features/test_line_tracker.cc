@@ -37,6 +37,7 @@ struct SequenceStats {
   std::vector<std::vector<LineObservation>> frames;
   std::vector<LineFrameTimings> timings;
   std::vector<double> right_error_px;  // correct stereo matches: endpoints' distance to the true edge in cam1
+  std::vector<double> left_error_px;   // left segments on a true edge: endpoints' distance to it in cam0
 };
 
 // Larger of the two endpoints' distances to the line through the edge g, pixels.
@@ -70,7 +71,10 @@ SequenceStats runSequence(const LineTrackerOptions& opt, int frames, bool stereo
       const int g0 = testing::assignEdge(l, e0);
       edge_now[o.id] = g0;
       length[o.id] = o.track_length;
-      if (g0 >= 0) ++st.left_on_edge;
+      if (g0 >= 0) {
+        ++st.left_on_edge;
+        st.left_error_px.push_back(endpointDistance(l, e0[g0]));
+      }
       if (o.has_right && g0 >= 0) {
         LineSegment r;
         r.s = o.ps1;
@@ -183,6 +187,35 @@ TEST(LineTracker, GuidedStereoFollowsLastFramesMatches) {
   EXPECT_GE(precision, 0.97);
   EXPECT_GE(st.stereo_total, 0.9 * ref.stereo_total);
   EXPECT_LE(median(st.right_error_px), median(ref.right_error_px) + 0.1);
+}
+
+TEST(LineTracker, PredictedLeftLinesFollowTheTracks) {
+  // The left image's full detection every other frame (temporal.detect_interval = 2); in between the tracks are
+  // predicted (true rotation, then their own flow) and refined on the image. Against detection on every frame: as
+  // many sightings on the true edges, as precise, as consistent, and every other frame without detection.
+  const int frames = 12;
+  LineTrackerOptions plain;
+  LineTrackerOptions predicted;
+  predicted.temporal.detect_interval = 2;
+  const SequenceStats ref = runSequence(plain, frames, true, cameraPose, true);
+  const SequenceStats st = runSequence(predicted, frames, true, cameraPose, true);
+  int predicted_frames = 0, found = 0;
+  for (const LineFrameTimings& tm : st.timings) {
+    predicted_frames += !tm.left_detected;
+    found += tm.left_predicted;
+  }
+  for (const LineFrameTimings& tm : ref.timings) EXPECT_TRUE(tm.left_detected);
+  const double precision = double(st.temporal_correct) / std::max(1, st.temporal_total);
+  std::printf("  predicted: %d frames without left detection, %d lines found there; temporal %d (plain %d), "
+              "precision %.3f; left endpoint error median %.3f px (plain %.3f px); on edges %d (plain %d)\n",
+              predicted_frames, found, st.temporal_total, ref.temporal_total, precision, median(st.left_error_px),
+              median(ref.left_error_px), st.left_on_edge, ref.left_on_edge);
+  // Frame 0 has no track (confirm_new) and frame 1 only tentative ones: from frame 2 on, every other frame.
+  EXPECT_GE(predicted_frames, frames / 2 - 1);
+  EXPECT_GE(found, 20 * predicted_frames);
+  EXPECT_GE(precision, 0.98);
+  EXPECT_GE(st.temporal_total, 0.85 * ref.temporal_total);
+  EXPECT_LE(median(st.left_error_px), median(ref.left_error_px) + 0.1);
 }
 
 TEST(LineTracker, MonoTracksWithoutRightObservations) {

@@ -31,7 +31,7 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
     series = {s: [] for s in STAGES}
     counts = {"lines": [], "stereo_matched": [], "stereo_guided": [], "tracked": [], "new_lines": [],
               "detected_left": [], "detected_right": []}
-    final_length, age, right_detected = {}, [], []
+    final_length, age, right_detected, left_detected, left_predicted = {}, [], [], [], []
     tracker = None
     for rep in range(repeat):
         tracker = lines.make_tracker(data, options, mono=mono)
@@ -49,6 +49,10 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
                 for c in ("stereo_matched", "stereo_guided", "tracked", "new_lines", "detected_left"):
                     counts[c].append(tm[c])
                 right_detected.append(bool(tm["right_detected"]))
+                left_detected.append(bool(tm["left_detected"]))
+                if not tm["left_detected"]:
+                    left_predicted.append(tm["left_predicted"])
+                    counts["detected_left"].pop()  # a frame without the left detection would count as 0
                 if tm["right_detected"]:  # frames without the right image's detection would count as 0
                     counts["detected_right"].append(tm["detected_right"])
                 for i, n in zip(obs["id"], obs["track_length"]):
@@ -62,6 +66,8 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
         "counts_median": {k: float(np.median(v)) if v else 0.0 for k, v in counts.items()},
         "stereo_guided_mean": float(np.mean(counts["stereo_guided"])) if counts["stereo_guided"] else 0.0,
         "right_detected_fraction": float(np.mean(right_detected)) if right_detected else 0.0,
+        "left_detected_fraction": float(np.mean(left_detected)) if left_detected else 0.0,
+        "left_predicted_mean": float(np.mean(left_predicted)) if left_predicted else 0.0,
         "track_length": {
             "ids": len(final_length),
             "median_per_id": float(np.median(list(final_length.values()))) if final_length else 0.0,
@@ -146,8 +152,9 @@ def COMMAND(dataset, json_out, frames, detector, settings, repeat, mono, sim_sce
     click.echo(f"median per frame: {c['lines']:.0f} lines, {c['stereo_matched']:.0f} stereo "
                f"({res['stereo_guided_mean']:.1f} guided on average), {c['tracked']:.0f} "
                f"tracked, {c['new_lines']:.0f} new; detected {c['detected_left']:.0f} left / "
-               f"{c['detected_right']:.0f} right (on the {100 * res['right_detected_fraction']:.0f} % of frames with a "
-               f"right detection)")
+               f"{c['detected_right']:.0f} right (on the {100 * res['left_detected_fraction']:.0f} / "
+               f"{100 * res['right_detected_fraction']:.0f} % of frames with a left / right detection; "
+               f"{res['left_predicted_mean']:.1f} left lines predicted on the others)")
     click.echo(f"track length: {tl['ids']} ids, median {tl['median_per_id']:.0f} (mean {tl['mean_per_id']:.1f}) "
                f"frames per id; median {tl['median_of_delivered_lines']:.0f} for the delivered lines")
     if json_out:

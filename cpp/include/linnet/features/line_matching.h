@@ -22,6 +22,16 @@ struct TemporalMatchOptions {
   int ransac_seed = 7;            // fixed seed: determinism
   int guided_max_hamming = 120;   // guided pass after the flow fit: descriptor bound, bits (0 = no guided pass)
   double guided_px = 3.0;         // guided pass: normal displacement off the fitted flow, pixels
+  // The left image's full detection runs every detect_interval frames. In between, each line of the previous frame
+  // (delivered, lost or tentative) is predicted into this frame (the rotation prediction, then its last motion across
+  // the line beyond that rotation) and refined on the left image's edge; it is kept when enough of the refinement's
+  // samples find the edge and its descriptor is close to the track's. No new lines start on such a frame. A frame
+  // where fewer than predicted_min_fraction of the last frame's delivered lines are found is detected instead.
+  int detect_interval = 1;               // 1: detection every frame, no predicted frames
+  int predicted_search_px = 3;           // refinement search across the predicted segment, +- pixels
+  double predicted_min_support = 0.6;    // fraction of the refinement's samples that must find the edge
+  int predicted_max_hamming = 70;        // descriptor distance to the track's, bits (256 = no check)
+  double predicted_min_fraction = 0.7;   // found / delivered last frame below this: the frame is detected instead
 
   template <class V>
   void visit(V& v) {
@@ -36,6 +46,13 @@ struct TemporalMatchOptions {
     v("ransac_seed", ransac_seed, "RANSAC random seed", 0, 1 << 30);
     v("guided_max_hamming", guided_max_hamming, "guided pass descriptor bound, bits (0 = off)", 0, 256);
     v("guided_px", guided_px, "guided pass normal displacement off the flow, pixels", 0.1, 100.0);
+    v("detect_interval", detect_interval, "full left-image detection every n-th frame, predicted lines between", 1,
+      1000);
+    v("predicted_search_px", predicted_search_px, "predicted lines' refinement search, +- pixels", 1, 10);
+    v("predicted_min_support", predicted_min_support, "predicted lines: fraction of samples on the edge", 0.0, 1.0);
+    v("predicted_max_hamming", predicted_max_hamming, "predicted lines: descriptor distance, bits", 0, 256);
+    v("predicted_min_fraction", predicted_min_fraction, "predicted frame: lines found / delivered last frame", 0.0,
+      1.0);
   }
 };
 

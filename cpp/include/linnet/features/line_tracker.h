@@ -86,6 +86,7 @@ class LineTracker {
     Vec3 stereo_s = Vec3::Zero();    // left endpoints triangulated with that match, metres, in cam0 of that frame
                                      // turned by the rotation predictions since (the guided stereo pass's prior)
     Vec3 stereo_e = Vec3::Zero();
+    Vec2 flow = Vec2::Zero();  // last motion of its midpoint beyond the rotation prediction, pixels per second
   };
   const std::vector<Track>& tracks() const { return tracks_; }
 
@@ -101,6 +102,11 @@ class LineTracker {
   // Guided stereo: the right segment (cam1 pixels) predicted for a track with a stereo prior, through its current
   // left segment (normalised), clipped to cam1's image; false when degenerate, out of the depth range or too short.
   bool predictRight(const Track& track, const LineSegment& left_uv, LineSegment* px) const;
+  // Predicted left lines (temporal.detect_interval): the previous frame's lines prev_segs (rotation-predicted), moved
+  // by their flow over dt seconds and refined on `left`. Fills the frame's segments and descriptors and match_of_cur;
+  // returns the number found.
+  int predictLeft(const cv::Mat& left, const std::vector<const Track*>& prev, const std::vector<LineSegment>& prev_segs,
+                  double dt, std::vector<int>* match_of_cur, LineFrameTimings* tm);
   // Turns a track's stereo prior by the rotation prediction into the current frame (translation is neglected).
   void rotatePrior(const std::optional<Mat3>& R_Ccur_Cprev, Track* track) const;
   // Matches left lines in the right image (out / left_uv / left_desc parallel, track_of_left into tracks_).
@@ -114,6 +120,7 @@ class LineTracker {
   Pose T_C1_C0_;
   LineDetector detector_;
   LineDetectorOptions guided_refine_;  // the detection's refinement with the guided search width
+  LineDetectorOptions predicted_refine_;  // the same with the predicted left lines' search width
   std::vector<Track> tracks_;
   std::vector<Track> lost_;       // recently lost tracks (missed 1..max_missed frames)
   std::vector<Track> tentative_;  // started last frame, awaiting confirmation
@@ -122,6 +129,7 @@ class LineTracker {
   bool has_last_ = false;
   std::int64_t frame_index_ = 0;  // track() calls so far
   int frames_since_detection_ = 0;  // stereo frames since the right image's last full detection
+  int frames_since_left_detection_ = 0;  // frames since the left image's last full detection
   int detection_matches_ = 0;       // stereo matches of the last full detection (before the final tests)
   LineFrameTimings timings_;
   std::optional<Mat3> R_pred_;

@@ -53,6 +53,8 @@ struct LineFrameTimings {
   int stereo_matched = 0;    // output lines with a right observation
   int stereo_guided = 0;     // of those, matched by the guided pass (predicted from the previous frame's match)
   bool right_detected = false;  // the right image's full detection ran this frame
+  bool left_detected = true;    // the left image's full detection ran this frame (else its lines were predicted)
+  int left_predicted = 0;       // lines found by prediction and refinement on a frame without left detection
 };
 
 }  // namespace linnet
