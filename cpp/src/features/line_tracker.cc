@@ -222,14 +222,16 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
     prev_matched[match_of_cur[i]] = 1;
   }
   // Unmatched tracks wait up to max_missed frames to be found again (detections flicker).
-  std::vector<Track> lost;
+  // A new line that a predicted frame misses (it has no flow yet) stays tentative until the next detection.
+  std::vector<Track> lost, still_tentative;
   for (std::size_t k = 0; k < prev.size(); ++k) {
-    if (prev_matched[k] || prev[k]->tentative || prev[k]->missed + 1 > options_.max_missed) continue;
+    if (prev_matched[k] || prev[k]->missed + 1 > options_.max_missed) continue;
+    if (prev[k]->tentative && detect_left) continue;
     Track t = *prev[k];
     rotatePrior(R_pred, &t);
     t.px = prev_segs[k];  // where the rotation prediction put it (unchanged without one)
     ++t.missed;
-    lost.push_back(t);
+    (t.tentative ? still_tentative : lost).push_back(t);
   }
   lost_.swap(lost);
   // Keep the longest-lived tracks if more matched than max_lines (only when max_lines shrank).
@@ -264,6 +266,7 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
       ++tm.new_lines;
     }
   }
+  tentative.insert(tentative.end(), still_tentative.begin(), still_tentative.end());
   tentative_.swap(tentative);
   std::sort(next.begin(), next.end(), [](const Track& a, const Track& b) { return a.id < b.id; });
   tracks_.swap(next);
