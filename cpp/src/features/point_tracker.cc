@@ -159,10 +159,10 @@ void PointTracker::trackTemporal(double dt) {
     // Constant translational flow: the track's last motion beyond the rotation, carried over the frame interval.
     const cv::Point2f moved = rotated[i] + tracks_[i].flow * flow_dt;
     start[i] = cam0_.inImage(toEigen(moved)) ? moved : rotated[i];
-    cur[i] = start[i];
   }
   // Tracks started from their own flow need few pyramid levels; fresh tracks (no flow yet) get all of them, and so do
-  // the predicted tracks that the small pyramid loses (a prediction off by more than its reach).
+  // the predicted tracks that the small pyramid loses (a prediction off by more than its reach). Every track is in
+  // one of the two calls, which write its cur and ok.
   std::vector<unsigned char> ok(n, 0);
   std::vector<std::size_t> predicted, full;
   for (std::size_t i = 0; i < n; ++i) {

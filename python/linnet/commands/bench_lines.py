@@ -46,14 +46,16 @@ def bench(dataset, frames=None, options=None, mono=False, repeat=1):
                 series[s].append(tm[s])
             if rep == 0:
                 counts["lines"].append(len(obs["id"]))
-                for c in ("stereo_matched", "stereo_guided", "tracked", "new_lines", "detected_left"):
+                for c in ("stereo_matched", "stereo_guided", "tracked", "new_lines"):
                     counts[c].append(tm[c])
                 right_detected.append(bool(tm["right_detected"]))
                 left_detected.append(bool(tm["left_detected"]))
-                if not tm["left_detected"]:
+                # Frames without an image's detection would count as 0 detected segments.
+                if tm["left_detected"]:
+                    counts["detected_left"].append(tm["detected_left"])
+                else:
                     left_predicted.append(tm["left_predicted"])
-                    counts["detected_left"].pop()  # a frame without the left detection would count as 0
-                if tm["right_detected"]:  # frames without the right image's detection would count as 0
+                if tm["right_detected"]:
                     counts["detected_right"].append(tm["detected_right"])
                 for i, n in zip(obs["id"], obs["track_length"]):
                     final_length[int(i)] = int(n)
