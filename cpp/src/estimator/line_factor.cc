@@ -79,7 +79,12 @@ bool LineReprojectionFactor::Evaluate(double const* const* parameters, double* r
 }
 
 double lineReprojectionErrorPx(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double focal_px) {
-  const Vec3 l = transformPlucker(T_W_C.inverse(), L_W).head<3>();
+  return lineReprojectionErrorPxFromCw(L_W, T_W_C.inverse(), s, e, focal_px);
+}
+
+double lineReprojectionErrorPxFromCw(const Vec6& L_W, const Pose& T_C_W, const Vec2& s, const Vec2& e,
+                                     double focal_px) {
+  const Vec3 l = transformPlucker(T_C_W, L_W).head<3>();
   const Vec2 d = lineEndpointDistances(l, s, e);
   if (!d.allFinite()) return std::numeric_limits<double>::infinity();
   return 0.5 * focal_px * (std::abs(d.x()) + std::abs(d.y()));

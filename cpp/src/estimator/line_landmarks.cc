@@ -2,7 +2,10 @@
 #include "linnet/estimator/line_landmarks.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
+#include <optional>
 
 #include "linnet/estimator/factors/line_factor.h"
 
@@ -107,7 +110,7 @@ bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const
   }
   if (!lm.has_extent || (lm.b - lm.a).norm() > options_.max_length_m) return reject();
   lm.triangulated = true;
-  if (meanErrorPx(window, lm) > options_.outlier_px) return reject();
+  if (meanErrorPx(WindowCameras(window, T_B_C0_, T_B_C1_), lm) > options_.outlier_px) return reject();
   return true;
 }
 
@@ -225,50 +228,27 @@ void LineLandmarks::clear() {
   landmarks_.clear();
 }
 
-double LineLandmarks::meanErrorPx(const Window& window, const LineLandmark& lm) const {
+double LineLandmarks::meanErrorPx(const WindowCameras& cams, const LineLandmark& lm) const {
   const Vec6 L = lm.L();
   double sum = 0.0;
   int n = 0;
   for (const auto& [fid, o] : lm.obs) {
-    const WindowFrame* f = window.find(fid);
-    if (f == nullptr) continue;
-    const Pose T_W_B = f->T_W_B();
-    sum += lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_);
+    const Pose* c0 = cams.cam0(fid);
+    if (c0 == nullptr) continue;
+    sum += lineReprojectionErrorPxFromCw(L, *c0, o.s0, o.e0, focal_length_);
     ++n;
     if (o.has_right) {
-      sum += lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_);
+      sum += lineReprojectionErrorPxFromCw(L, *cams.cam1(fid), o.s1, o.e1, focal_length_);
       ++n;
     }
   }
   return n == 0 ? 0.0 : sum / n;
 }
 
-LineLandmarks::BadPart LineLandmarks::badPart(const Vec6& L, const Pose& T_W_B, const LineFrameObs& o) const {
-  if (lineReprojectionErrorPx(L, T_W_B * T_B_C0_, o.s0, o.e0, focal_length_) > options_.max_observation_px)
-    return BadPart::kCam0;
-  if (o.has_right &&
-      lineReprojectionErrorPx(L, T_W_B * *T_B_C1_, o.s1, o.e1, focal_length_) > options_.max_observation_px)
-    return BadPart::kCam1;
+LineLandmarks::BadPart LineLandmarks::badPart(double cam0_px, double cam1_px, const LineFrameObs& o) const {
+  if (cam0_px > options_.max_observation_px) return BadPart::kCam0;
+  if (o.has_right && cam1_px > options_.max_observation_px) return BadPart::kCam1;
   return BadPart::kNone;
-}
-
-int LineLandmarks::dropBadSightings(const Window& window, LineLandmark& lm) const {
-  // One bad frame of a good track (a segment matched to a neighbouring parallel edge, a stereo mismatch) would keep
-  // pulling its frame's pose through the robust loss' linear tail; the line keeps its other sightings.
-  const Vec6 L = lm.L();
-  int dropped = 0;
-  for (auto it = lm.obs.begin(); it != lm.obs.end();) {
-    const WindowFrame* f = window.find(it->first);
-    const BadPart bad = f == nullptr ? BadPart::kNone : badPart(L, f->T_W_B(), it->second);
-    if (bad != BadPart::kNone) ++dropped;
-    if (bad == BadPart::kCam0) {
-      it = lm.obs.erase(it);
-      continue;
-    }
-    if (bad == BadPart::kCam1) it->second.has_right = false;
-    ++it;
-  }
-  return dropped;
 }
 
 int LineLandmarks::gateNewest(const Window& window) {
@@ -277,12 +257,20 @@ int LineLandmarks::gateNewest(const Window& window) {
   // geometry good enough to judge by.
   const WindowFrame& newest = window.newest();
   const Pose T_W_B = newest.T_W_B();
+  const Pose T_C0_W = (T_W_B * T_B_C0_).inverse();
+  const std::optional<Pose> T_C1_W = T_B_C1_ ? std::optional<Pose>((T_W_B * *T_B_C1_).inverse()) : std::nullopt;
   int dropped = 0;
   for (auto& [id, lm] : landmarks_) {
     if (!lm.solved || !lm.triangulated) continue;
     const auto it = lm.obs.find(newest.id);
     if (it == lm.obs.end()) continue;
-    const BadPart bad = badPart(lm.L(), T_W_B, it->second);
+    const Vec6 L = lm.L();
+    const LineFrameObs& o = it->second;
+    const double e0 = lineReprojectionErrorPxFromCw(L, T_C0_W, o.s0, o.e0, focal_length_);
+    const double e1 = e0 <= options_.max_observation_px && o.has_right
+                          ? lineReprojectionErrorPxFromCw(L, *T_C1_W, o.s1, o.e1, focal_length_)
+                          : 0.0;
+    const BadPart bad = badPart(e0, e1, o);
     if (bad != BadPart::kNone) ++dropped;
     if (bad == BadPart::kCam0)
       lm.obs.erase(it);
@@ -297,6 +285,8 @@ int LineLandmarks::rejectOutliers(const Window& window) {
   const WindowFrame& newest = window.newest();
   const Pose T_W_C = newest.T_W_B() * T_B_C0_;
   const double min_sin_view = std::sin(options_.min_view_angle_deg * kDegToRad);
+  const WindowCameras cams(window, T_B_C0_, T_B_C1_);
+  std::vector<std::array<double, 2>> errors;  // each window sighting's cam0 / cam1 error, pixels (NaN: not in it)
   int removed = 0;
   for (auto it = landmarks_.begin(); it != landmarks_.end();) {
     LineLandmark& lm = it->second;
@@ -306,12 +296,44 @@ int LineLandmarks::rejectOutliers(const Window& window) {
     }
     const Vec6 L = lm.L();
     bool bad = false;
-    if (!L.allFinite() || meanErrorPx(window, lm) > options_.outlier_px) {
+    // Each sighting's error once: their mean judges the line, each alone its sighting.
+    errors.clear();
+    double sum = 0.0;
+    int n = 0;
+    for (const auto& [fid, o] : lm.obs) {
+      const Pose* c0 = cams.cam0(fid);
+      if (c0 == nullptr) {
+        errors.push_back({std::numeric_limits<double>::quiet_NaN(), 0.0});
+        continue;
+      }
+      const double e0 = lineReprojectionErrorPxFromCw(L, *c0, o.s0, o.e0, focal_length_);
+      const double e1 = o.has_right ? lineReprojectionErrorPxFromCw(L, *cams.cam1(fid), o.s1, o.e1, focal_length_) : 0.0;
+      errors.push_back({e0, e1});
+      sum += e0;
+      ++n;
+      if (o.has_right) {
+        sum += e1;
+        ++n;
+      }
+    }
+    if (!L.allFinite() || (n == 0 ? 0.0 : sum / n) > options_.outlier_px) {
       ++rejections_.reprojection;
       bad = true;
     } else {
-      // A good line with one bad frame keeps its other sightings.
-      rejections_.sightings += dropBadSightings(window, lm);
+      // A good line with one bad frame keeps its other sightings: a frame's cam0 segment with its cam1 one, or only
+      // cam1 (a segment matched to a neighbouring parallel edge, a stereo mismatch would keep pulling its frame's
+      // pose through the robust loss' linear tail).
+      std::size_t k = 0;
+      for (auto o = lm.obs.begin(); o != lm.obs.end(); ++k) {
+        const BadPart part = std::isnan(errors[k][0]) ? BadPart::kNone : badPart(errors[k][0], errors[k][1], o->second);
+        if (part != BadPart::kNone) ++rejections_.sightings;
+        if (part == BadPart::kCam0) {
+          o = lm.obs.erase(o);
+          continue;
+        }
+        if (part == BadPart::kCam1) o->second.has_right = false;
+        ++o;
+      }
       if (lm.obs.size() < 2) {
         ++rejections_.reprojection;
         bad = true;

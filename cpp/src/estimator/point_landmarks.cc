@@ -175,12 +175,12 @@ void PointLandmarks::removeFrame(const Window& window, FrameId frame) {
   }
 }
 
-double PointLandmarks::meanErrorPx(const Window& window, const PointLandmark& lm) const {
+double PointLandmarks::meanErrorPx(const Window& window, const WindowCameras& cams, const PointLandmark& lm) const {
   const Vec3 p_W = worldPosition(window, lm);
   double sum = 0.0;
   int n = 0;
-  auto add = [&](const Pose& T_W_C, const Vec2& uv) {
-    const Vec3 p_C = T_W_C.inverse() * p_W;
+  auto add = [&](const Pose& T_C_W, const Vec2& uv) {
+    const Vec3 p_C = T_C_W * p_W;
     if (p_C.z() <= 1e-6) {
       sum += 1e6;
     } else {
@@ -189,20 +189,21 @@ double PointLandmarks::meanErrorPx(const Window& window, const PointLandmark& lm
     ++n;
   };
   for (const auto& [fid, o] : lm.obs) {
-    const WindowFrame* f = window.find(fid);
-    if (f == nullptr) continue;
-    if (fid != lm.host) add(f->T_W_B() * T_B_C0_, o.uv0);
-    if (o.has_right) add(f->T_W_B() * *T_B_C1_, o.uv1);
+    const Pose* c0 = cams.cam0(fid);
+    if (c0 == nullptr) continue;
+    if (fid != lm.host) add(*c0, o.uv0);
+    if (o.has_right) add(*cams.cam1(fid), o.uv1);
   }
   return n == 0 ? 0.0 : sum / n;
 }
 
 int PointLandmarks::rejectOutliers(const Window& window) {
+  const WindowCameras cams(window, T_B_C0_, T_B_C1_);
   int removed = 0;
   for (auto it = landmarks_.begin(); it != landmarks_.end();) {
     const PointLandmark& lm = it->second;
     if (lm.used && (lm.inv_depth <= 0.0 || !depthOk(1.0 / lm.inv_depth) ||
-                    meanErrorPx(window, lm) > options_.outlier_px)) {
+                    meanErrorPx(window, cams, lm) > options_.outlier_px)) {
       it = landmarks_.erase(it);
       ++removed;
     } else {

@@ -1,5 +1,7 @@
 #include "linnet/estimator/window.h"
 
+#include <algorithm>
+
 #include "linnet/core/error.h"
 #include "linnet/estimator/manifolds.h"
 
@@ -77,6 +79,33 @@ double* Window::block(std::int64_t key) {
   WindowFrame* f = find(key / 4);
   if (f == nullptr) return nullptr;
   return key % 4 == static_cast<int>(BlockKind::kPose) ? f->pose.data() : f->speed_bias.data();
+}
+
+WindowCameras::WindowCameras(const Window& window, const Pose& T_B_C0, const std::optional<Pose>& T_B_C1) {
+  ids_.reserve(static_cast<std::size_t>(window.size()));
+  c0_.reserve(static_cast<std::size_t>(window.size()));
+  for (int i = 0; i < window.size(); ++i) {
+    const WindowFrame& f = window[i];
+    const Pose T_W_B = f.T_W_B();
+    ids_.push_back(f.id);
+    c0_.push_back((T_W_B * T_B_C0).inverse());
+    if (T_B_C1) c1_.push_back((T_W_B * *T_B_C1).inverse());
+  }
+}
+
+int WindowCameras::index(FrameId id) const {
+  const auto it = std::lower_bound(ids_.begin(), ids_.end(), id);
+  return it == ids_.end() || *it != id ? -1 : static_cast<int>(it - ids_.begin());
+}
+
+const Pose* WindowCameras::cam0(FrameId id) const {
+  const int i = index(id);
+  return i < 0 ? nullptr : &c0_[static_cast<std::size_t>(i)];
+}
+
+const Pose* WindowCameras::cam1(FrameId id) const {
+  const int i = index(id);
+  return i < 0 || c1_.empty() ? nullptr : &c1_[static_cast<std::size_t>(i)];
 }
 
 }  // namespace linnet

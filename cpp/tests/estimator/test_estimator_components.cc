@@ -113,6 +113,36 @@ TEST(Window, IdsKeysAndSliding) {
   EXPECT_THROW(w.removeMerging(0), UsageError);
 }
 
+TEST(Window, CamerasAreTheInversesOfEachFramesCameraPose) {
+  // The outlier checks read each frame's world -> camera pose from WindowCameras instead of inverting T_W_B * T_B_C
+  // at every sighting: the same numbers, bit for bit, and none for frames that left the window.
+  Window w;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int k = 0; k < 5; ++k) {
+    WindowFrame& f = w.push(1'000'000'000LL + k * 50'000'000LL);
+    f.setPose(Pose(Quat(Eigen::AngleAxisd(u(rng), Vec3(u(rng), u(rng), 1.0).normalized())), Vec3(u(rng), u(rng), u(rng))));
+  }
+  w.removeMerging(2);
+  const Pose T_B_C0(Quat(Eigen::AngleAxisd(0.3, Vec3::UnitY())), Vec3(0.02, -0.06, 0.01));
+  const Pose T_B_C1(Quat(Eigen::AngleAxisd(0.31, Vec3::UnitY())), Vec3(0.02, 0.05, 0.01));
+  const WindowCameras cams(w, T_B_C0, T_B_C1);
+  for (int i = 0; i < w.size(); ++i) {
+    const Pose c0 = (w[i].T_W_B() * T_B_C0).inverse(), c1 = (w[i].T_W_B() * T_B_C1).inverse();
+    ASSERT_NE(cams.cam0(w[i].id), nullptr);
+    ASSERT_NE(cams.cam1(w[i].id), nullptr);
+    EXPECT_EQ(cams.cam0(w[i].id)->p, c0.p);
+    EXPECT_EQ(cams.cam0(w[i].id)->q.coeffs(), c0.q.coeffs());
+    EXPECT_EQ(cams.cam1(w[i].id)->p, c1.p);
+    EXPECT_EQ(cams.cam1(w[i].id)->q.coeffs(), c1.q.coeffs());
+  }
+  EXPECT_EQ(cams.cam0(2), nullptr);
+  EXPECT_EQ(cams.cam0(7), nullptr);
+  const WindowCameras mono(w, T_B_C0, std::nullopt);
+  EXPECT_NE(mono.cam0(w[0].id), nullptr);
+  EXPECT_EQ(mono.cam1(w[0].id), nullptr);
+}
+
 TEST(PointLandmarks, StereoTriangulationReanchoringAndResidualKinds) {
   const Pose T_B_C0 = eurocTBC0(), T_B_C1 = eurocTBC1();
   Window w;

@@ -77,6 +77,20 @@ TEST(LineFactor, ImageLineMatchesDirectProjection) {
   }
 }
 
+TEST(LineFactor, ReprojectionErrorFromTheInverseCameraPoseIsTheSame) {
+  // The outlier checks pass each frame's world -> camera pose, computed once: the same pixels as the plain form.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.3, 0.3);
+  for (int trial = 0; trial < 10; ++trial) {
+    const Pose T_W_C = randomPose(rng, 3.0);
+    const Vec6 L_W = pluckerFromPoints(T_W_C * Vec3(0.5, -0.2, 3.0), T_W_C * Vec3(-0.4, 0.6, 5.0));
+    const Vec2 s(0.5 / 3.0 + u(rng) * 0.01, -0.2 / 3.0), e(-0.4 / 5.0, 0.6 / 5.0 + u(rng) * 0.01);
+    const double plain = lineReprojectionErrorPx(L_W, T_W_C, s, e, 460.0);
+    EXPECT_EQ(lineReprojectionErrorPxFromCw(L_W, T_W_C.inverse(), s, e, 460.0), plain);
+    EXPECT_GT(plain, 0.0);
+  }
+}
+
 TEST(LineFactor, JacobiansMatchNumericCam0AndCam1) {
   std::mt19937 rng(11);
   const PoseManifold pose_manifold;

@@ -113,16 +113,13 @@ class LineLandmarks {
   }
 
  private:
-  /// The part of sighting `o` (at body pose T_W_B) farther than options.max_observation_px from L's projection: cam0
-  /// (the whole sighting goes), only cam1, or none.
+  /// The part of sighting `o`, given its cam0 / cam1 errors (pixels; cam1's read only if o.has_right), farther than
+  /// options.max_observation_px from the line's projection: cam0 (the whole sighting goes), only cam1, or none.
   enum class BadPart { kNone, kCam0, kCam1 };
-  BadPart badPart(const Vec6& L, const Pose& T_W_B, const LineFrameObs& o) const;
-  /// Drops the sightings of `lm` (a frame's cam0 segment with its cam1 one, or only cam1) farther than
-  /// options.max_observation_px from its projection; returns how many.
-  int dropBadSightings(const Window& window, LineLandmark& lm) const;
+  BadPart badPart(double cam0_px, double cam1_px, const LineFrameObs& o) const;
 
   /// Mean endpoint distance in pixels over the line's window observations (cam0 and cam1).
-  double meanErrorPx(const Window& window, const LineLandmark& lm) const;
+  double meanErrorPx(const WindowCameras& cams, const LineLandmark& lm) const;
   /// Back-projects an observed segment onto the line: the two 3D points, false if a ray misses the depth range.
   bool backProject(const Vec6& L, const Pose& T_W_C, const Vec2& s, const Vec2& e, Vec3* a, Vec3* b) const;
   /// Extends the line's extent by a back-projected segment (keeps the two extreme points along the line).

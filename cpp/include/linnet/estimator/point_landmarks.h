@@ -87,7 +87,8 @@ class PointLandmarks {
 
  private:
   bool triangulateOne(const Window& window, PointLandmark& lm) const;
-  double meanErrorPx(const Window& window, const PointLandmark& lm) const;
+  /// Mean reprojection error in pixels over the landmark's window sightings (cam0 outside the host, and cam1).
+  double meanErrorPx(const Window& window, const WindowCameras& cams, const PointLandmark& lm) const;
   /// Takes part in solves: triangulated and seen in at least solver.min_observations window frames.
   bool usable(const PointLandmark& lm) const {
     return lm.triangulated && lm.obs.size() >= static_cast<std::size_t>(std::max(2, options_.min_observations));

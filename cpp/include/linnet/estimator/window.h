@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "linnet/core/pose.h"
@@ -77,6 +78,22 @@ class Window {
  private:
   std::deque<std::unique_ptr<WindowFrame>> frames_;
   FrameId next_id_ = 0;
+};
+
+/// The world -> camera poses of every window frame's cam0 (and cam1), computed once for the checks that reproject
+/// all the sightings of the window: the same numbers as inverting T_W_B * T_B_C at each sighting.
+class WindowCameras {
+ public:
+  WindowCameras(const Window& window, const Pose& T_B_C0, const std::optional<Pose>& T_B_C1);
+  /// T_C0_W of frame `id`; nullptr if the frame is not in the window.
+  const Pose* cam0(FrameId id) const;
+  /// T_C1_W of frame `id`; nullptr if the frame is not in the window or there is no cam1.
+  const Pose* cam1(FrameId id) const;
+
+ private:
+  int index(FrameId id) const;
+  std::vector<FrameId> ids_;  // ascending, as in the window
+  std::vector<Pose> c0_, c1_;
 };
 
 }  // namespace linnet

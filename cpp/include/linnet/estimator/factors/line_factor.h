@@ -46,5 +46,8 @@ class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public 
 /// Mean endpoint-to-line distance in pixels of one observation (focal_px times the normalised distances), +infinity
 /// if the line projects to a point.
 double lineReprojectionErrorPx(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double focal_px);
+/// The same with the camera's world -> camera pose T_C_W (= T_W_C.inverse()) given.
+double lineReprojectionErrorPxFromCw(const Vec6& L_W, const Pose& T_C_W, const Vec2& s, const Vec2& e,
+                                     double focal_px);
 
 }  // namespace linnet
