@@ -133,40 +133,72 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
   }
 
   // 2. KLT refinement from the guesses (only the levels up to the search level: the guess is good to a pixel there),
-  //    then the right -> left round trip.
+  //    then the right -> left round trip. Points with a prior may take fewer levels, and skip the round trip when the
+  //    forward pass ends where the prior said (their last match, carried by the left flow, confirms them).
   std::vector<std::size_t> idx;
   std::vector<cv::Point2f> left, right;
+  std::vector<unsigned char> from_prior;
   for (std::size_t i = 0; i < n; ++i)
     if (have[i]) {
       idx.push_back(i);
       left.push_back(px0[i]);
       right.push_back(guess[i]);
+      from_prior.push_back(prior && std::isfinite((*prior)[i].x) && std::isfinite((*prior)[i].y) ? 1 : 0);
     }
   if (!idx.empty()) {
     const cv::Size win(p.klt_window_px, p.klt_window_px);
     const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, p.klt_max_iterations,
                                 p.klt_epsilon);
     const int levels = std::min(p.klt_levels, std::max(1, lvl));
-    std::vector<unsigned char> st_f, st_b;
-    cv::calcOpticalFlowPyrLK(pyr0, pyr1, left, right, st_f, cv::noArray(), win, levels, crit,
-                             cv::OPTFLOW_USE_INITIAL_FLOW, p.klt_min_eigen);
-    // Right -> left round trip, only for the points the forward pass kept.
-    std::vector<cv::Point2f> fwd, back;
-    std::vector<std::size_t> fwd_k;
-    for (std::size_t k = 0; k < idx.size(); ++k)
-      if (st_f[k] && cam1.inImage(Vec2(right[k].x, right[k].y), p.border_px)) {
+    const int prior_levels = p.prior_levels < 0 ? levels : std::min(levels, p.prior_levels);
+    const double agree2 = p.prior_agree_px * p.prior_agree_px;
+    std::vector<unsigned char> round_trip(idx.size(), 0);
+    // Forward and round trip for the points of one group (with a prior or not), each on its own levels. KLT treats
+    // every point alone, so the split does not change a point's result.
+    enum class Group { kAll, kPrior, kSearched };
+    const auto refine = [&](Group group, int group_levels) {
+      std::vector<std::size_t> ks;
+      std::vector<cv::Point2f> l, r;
+      for (std::size_t k = 0; k < idx.size(); ++k)
+        if (group == Group::kAll || (from_prior[k] != 0) == (group == Group::kPrior)) {
+          ks.push_back(k);
+          l.push_back(left[k]);
+          r.push_back(right[k]);
+        }
+      if (ks.empty()) return;
+      std::vector<unsigned char> st_f, st_b;
+      cv::calcOpticalFlowPyrLK(pyr0, pyr1, l, r, st_f, cv::noArray(), win, group_levels, crit,
+                               cv::OPTFLOW_USE_INITIAL_FLOW, p.klt_min_eigen);
+      std::vector<cv::Point2f> fwd, back;
+      std::vector<std::size_t> fwd_k;
+      for (std::size_t j = 0; j < ks.size(); ++j) {
+        const std::size_t k = ks[j];
+        right[k] = r[j];
+        if (!st_f[j] || !cam1.inImage(Vec2(r[j].x, r[j].y), p.border_px)) continue;
+        const cv::Point2f moved = r[j] - guess[idx[k]];
+        if (from_prior[k] && agree2 > 0.0 && moved.dot(moved) <= agree2) {
+          round_trip[k] = 1;
+          ++st.round_trip_skipped;
+          continue;
+        }
         fwd_k.push_back(k);
-        fwd.push_back(right[k]);
+        fwd.push_back(r[j]);
         back.push_back(left[k]);
       }
-    if (!fwd.empty())
-      cv::calcOpticalFlowPyrLK(pyr1, pyr0, fwd, back, st_b, cv::noArray(), win, levels, crit,
+      if (fwd.empty()) return;
+      cv::calcOpticalFlowPyrLK(pyr1, pyr0, fwd, back, st_b, cv::noArray(), win, group_levels, crit,
                                cv::OPTFLOW_USE_INITIAL_FLOW, p.klt_min_eigen);
-    std::vector<unsigned char> round_trip(idx.size(), 0);
-    const double fb2 = p.fb_threshold_px * p.fb_threshold_px;
-    for (std::size_t j = 0; j < fwd_k.size(); ++j) {
-      const cv::Point2f d = back[j] - left[fwd_k[j]];
-      round_trip[fwd_k[j]] = st_b[j] && d.dot(d) <= fb2;
+      const double fb2 = p.fb_threshold_px * p.fb_threshold_px;
+      for (std::size_t j = 0; j < fwd_k.size(); ++j) {
+        const cv::Point2f d = back[j] - left[fwd_k[j]];
+        round_trip[fwd_k[j]] = st_b[j] && d.dot(d) <= fb2;
+      }
+    };
+    if (prior_levels == levels) {
+      refine(Group::kAll, levels);
+    } else {
+      refine(Group::kPrior, prior_levels);
+      refine(Group::kSearched, levels);
     }
 
     // 3. Geometric checks in normalised coordinates.

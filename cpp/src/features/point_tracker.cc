@@ -98,7 +98,9 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
       with_clahe = stereo_clahe_on_ && ++frames_since_probe_ < opt_.stereo_clahe_probe_frames;
     if (may_clahe && !with_clahe) {
       const std::vector<Track> before = tracks_;
-      stereoPass(left, right_in, false);
+      // A probe while CLAHE is on takes every match's full check (no prior shortcut), so that its verdict on the raw
+      // images is as strict as the matching it may replace.
+      stereoPass(left, right_in, false, /*prior_shortcut=*/!stereo_clahe_on_);
       const bool decided = stats_.stereo_attempted >= kMinStereoAttemptsForDecision;
       const bool raw_ok = decided && stats_.stereo_matched >= opt_.stereo_clahe_min_ratio * stats_.stereo_attempted;
       if (decided) {
@@ -107,10 +109,10 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
       }
       if (!raw_ok) {
         tracks_ = before;
-        stereoPass(left_in, right_in, true);
+        stereoPass(left_in, right_in, true, true);
       }
     } else {
-      stereoPass(left, right_in, with_clahe);
+      stereoPass(left, right_in, with_clahe, true);
     }
   } else {
     for (Track& tr : tracks_) tr.has_right = tr.right_prior = tr.stereo_skipped = false;
@@ -331,7 +333,7 @@ void PointTracker::replenish(const cv::Mat& image) {
   }
 }
 
-void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool stereo_clahe) {
+void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool stereo_clahe, bool prior_shortcut) {
   const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
   cv::Mat sl = left, sr = right_in;
   const std::vector<cv::Mat>* pyr_left = &pyr_cur_;
@@ -366,10 +368,10 @@ void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool
   }
   cv::buildOpticalFlowPyramid(sr, pyr_right_, win, stereo_levels, true, cv::BORDER_REFLECT_101,
                               cv::BORDER_CONSTANT, false);
-  matchStereo(*pyr_left);
+  matchStereo(*pyr_left, prior_shortcut);
 }
 
-void PointTracker::matchStereo(const std::vector<cv::Mat>& pyr_left) {
+void PointTracker::matchStereo(const std::vector<cv::Mat>& pyr_left, bool prior_shortcut) {
   std::vector<std::size_t> idx;
   std::vector<cv::Point2f> px0, prior;
   std::vector<Vec2> uv0;
@@ -397,6 +399,8 @@ void PointTracker::matchStereo(const std::vector<cv::Mat>& pyr_left) {
   sp.search_min_zncc = opt_.stereo_search_min_zncc;
   sp.search_level = opt_.stereo_search_level;
   sp.fb_threshold_px = opt_.stereo_fb_threshold_px;
+  sp.prior_levels = prior_shortcut ? opt_.stereo_prior_levels : -1;
+  sp.prior_agree_px = prior_shortcut ? opt_.stereo_prior_agree_px : 0.0;
   sp.epipolar_threshold_px = opt_.stereo_epipolar_threshold_px;
   sp.min_depth_m = opt_.stereo_min_depth_m;
   sp.border_px = opt_.border_px;
@@ -417,6 +421,7 @@ void PointTracker::matchStereo(const std::vector<cv::Mat>& pyr_left) {
   stats_.stereo_matched = ss.matched;
   stats_.stereo_search_failed = ss.search_failed;
   stats_.stereo_klt_failed = ss.klt_failed;
+  stats_.stereo_round_trip_skipped = ss.round_trip_skipped;
   stats_.stereo_epipolar_rejected = ss.epipolar_rejected;
   stats_.stereo_depth_rejected = ss.depth_rejected;
 }

@@ -1,6 +1,8 @@
 // Unrectified stereo matching of points on a synthetic plane with known depth.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
@@ -97,6 +99,68 @@ TEST(PointStereo, PriorSkipsTheSearch) {
                                      s.uv0, &prior, StereoPointParams(), &st);
   EXPECT_EQ(st.searched, 0);
   EXPECT_GE(st.matched, static_cast<int>(0.9 * res.size()));
+}
+
+TEST(PointStereo, PriorsOnFullResolutionAgreeWithThePlainPath) {
+  // Half the points have a prior (0.3 px off, as a last match carried by the left flow is: 0.09 px median on MH_01
+  // hall hard), half are searched. On full resolution alone, with the round trip skipped where the KLT ends within
+  // 0.5 px of the prior, every point ends where the plain path (all levels, every round trip) puts it.
+  const double b = 0.11, Z = 1.5, d = 400.0 * b / Z;
+  StereoScene s = makeSetup(Z, b, 0.0);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<cv::Point2f> prior;
+  for (std::size_t i = 0; i < s.px0.size(); ++i)
+    prior.push_back(i % 2 == 0 ? cv::Point2f(s.px0[i].x - float(d) + 0.3f, s.px0[i].y - 0.1f) : cv::Point2f(nan, nan));
+  const Pose T_C1_C0(Quat::Identity(), Vec3(-b, 0, 0));
+  StereoPointParams plain, fast;
+  fast.prior_levels = 0;
+  fast.prior_agree_px = 0.5;
+  StereoPointStats st_plain, st_fast;
+  const auto a = matchStereoPoints(s.pyr0, s.pyr1, *s.cam, *s.cam, T_C1_C0, s.px0, s.uv0, &prior, plain, &st_plain);
+  const auto f = matchStereoPoints(s.pyr0, s.pyr1, *s.cam, *s.cam, T_C1_C0, s.px0, s.uv0, &prior, fast, &st_fast);
+  EXPECT_EQ(st_plain.round_trip_skipped, 0);
+  int with_prior = 0, same = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (i % 2 != 0) {  // searched: the same calls as the plain path, bit for bit
+      EXPECT_EQ(a[i].ok, f[i].ok) << i;
+      if (a[i].ok && f[i].ok) {
+        EXPECT_EQ(a[i].px1.x, f[i].px1.x) << i;
+        EXPECT_EQ(a[i].px1.y, f[i].px1.y) << i;
+      }
+      continue;
+    }
+    if (!a[i].ok) continue;
+    ++with_prior;
+    if (!f[i].ok) continue;
+    ++same;
+    EXPECT_NEAR(f[i].px1.x, a[i].px1.x, 0.02) << i;
+    EXPECT_NEAR(f[i].px1.y, a[i].px1.y, 0.02) << i;
+    EXPECT_NEAR(f[i].px1.x, s.px0[i].x - d, 0.1) << i;
+  }
+  EXPECT_GE(with_prior, 30);
+  EXPECT_EQ(same, with_prior);
+  EXPECT_GE(st_fast.round_trip_skipped, with_prior * 9 / 10);
+}
+
+TEST(PointStereo, PriorsThatDisagreeTakeTheRoundTrip) {
+  // A prior 2 px off: the full-resolution KLT still converges (its window is 15 px), but it moves more than 0.5 px
+  // from the prior, so every such point takes the round trip, and the matches stay right.
+  const double b = 0.11, Z = 2.0, d = 400.0 * b / Z;
+  StereoScene s = makeSetup(Z, b, 0.0);
+  std::vector<cv::Point2f> prior;
+  for (const auto& q : s.px0) prior.emplace_back(q.x - float(d) + 2.0f, q.y);
+  StereoPointParams fast;
+  fast.prior_levels = 0;
+  fast.prior_agree_px = 0.5;
+  StereoPointStats st;
+  const auto res = matchStereoPoints(s.pyr0, s.pyr1, *s.cam, *s.cam, Pose(Quat::Identity(), Vec3(-b, 0, 0)), s.px0,
+                                     s.uv0, &prior, fast, &st);
+  EXPECT_EQ(st.round_trip_skipped, 0);
+  EXPECT_GE(st.matched, static_cast<int>(0.9 * res.size()));
+  for (std::size_t i = 0; i < res.size(); ++i) {
+    if (!res[i].ok) continue;
+    EXPECT_NEAR(res[i].px1.x, s.px0[i].x - d, 0.1) << i;
+  }
 }
 
 TEST(PointStereo, OffEpipolarImageIsRejected) {

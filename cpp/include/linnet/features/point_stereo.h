@@ -24,6 +24,10 @@ struct StereoPointParams {
   double search_min_depth_m = 0.3;    // the search covers depths from here to infinity, metres
   double search_min_zncc = 0.6;       // best candidate's ZNCC must reach this
   double fb_threshold_px = 1.0;       // right -> left round trip error, pixels
+  int prior_levels = -1;              // levels above full resolution for the points with a prior (-1: as the others;
+                                      // never more than they get)
+  double prior_agree_px = 0.0;        // a point with a prior whose forward KLT ends within this distance of the prior
+                                      // skips the round trip (0: every point takes it), pixels
   double verify_min_zncc = 0.7;       // full-resolution ZNCC of the final match must reach this (-1: no check)
   int verify_half_patch = 4;          // its patch half size, pixels
   double epipolar_threshold_px = 1.5; // distance of the right point to its epipolar line, pixels of cam1
@@ -42,6 +46,7 @@ struct StereoPointStats {
   int searched = 0;         // points that needed the epipolar search (no prior)
   int search_failed = 0;    // no candidate reached search_min_zncc
   int klt_failed = 0;       // KLT lost, round trip failed, or outside cam1
+  int round_trip_skipped = 0;  // points with a prior that ended within prior_agree_px of it (no round trip)
   int epipolar_rejected = 0;
   int depth_rejected = 0;
   int verify_rejected = 0;  // full-resolution ZNCC below verify_min_zncc

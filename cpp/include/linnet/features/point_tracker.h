@@ -73,6 +73,11 @@ struct PointTrackerOptions {
                                          // CPU real-time factor on MH_01 hall hard 0.286 -> 0.269, but APE on the
                                          // hard replays mixed (V2_01 +11 %, MH_04 +3 %, MH_01 -7 %), so 1 stays
   int stereo_search_level = 1;           // pyramid level of the epipolar search (0 = full resolution)
+  int stereo_prior_levels = 0;           // KLT levels above full resolution for tracks matched in cam1 last frame
+                                         // (started there, moved by their left flow: a median 0.09 px off on MH_01
+                                         // hall hard); -1: as the searched ones (stereo_search_level)
+  double stereo_prior_agree_px = 0.5;    // such a track whose cam1 KLT ends within this of its prior skips the
+                                         // right -> left round trip (its last match confirms it; 0: never), pixels
   bool stereo_gain_compensation = true;  // match the right image's mean and contrast to the left's before stereo KLT
   // Image preprocessing
   bool clahe = false;                    // contrast-limited adaptive histogram equalisation before all tracking (as
@@ -126,6 +131,10 @@ struct PointTrackerOptions {
     v("stereo_refresh_interval", stereo_refresh_interval, "frames between stereo matches of a matched track", 1,
       1000);
     v("stereo_search_level", stereo_search_level, "pyramid level of the epipolar search", 0, 8);
+    v("stereo_prior_levels", stereo_prior_levels, "stereo KLT levels for tracks matched last frame (-1: as the others)",
+      -1, 8);
+    v("stereo_prior_agree_px", stereo_prior_agree_px,
+      "a track ending this close to its stereo prior skips the round trip, pixels (0: never)", 0.0, 100.0);
     v("stereo_retry_interval", stereo_retry_interval, "frames before a failed stereo match is tried again", 1, 1000);
     v("stereo_gain_compensation", stereo_gain_compensation, "match the right image's mean and contrast to the left's");
     v("clahe", clahe, "CLAHE before all tracking");
@@ -151,6 +160,7 @@ struct PointTrackerStats {
   int stereo_matched = 0;
   int stereo_search_failed = 0;   // no epipolar-search candidate reached stereo_search_min_zncc
   int stereo_klt_failed = 0;      // KLT lost, right -> left check failed, or outside cam1
+  int stereo_round_trip_skipped = 0;  // matched near their prior, no right -> left check (stereo_prior_agree_px)
   int stereo_epipolar_rejected = 0;
   int stereo_depth_rejected = 0;  // negative or below stereo_min_depth_m
   bool used_rotation_prediction = false;
@@ -212,8 +222,10 @@ class PointTracker {
   void rejectOutliers(const std::vector<Vec2>& uv_prev);
   void replenish(const cv::Mat& image);
   // Stereo matching of the current tracks; stereo_clahe: on CLAHE copies of both images (left: the raw left image).
-  void stereoPass(const cv::Mat& left, const cv::Mat& right, bool stereo_clahe);
-  void matchStereo(const std::vector<cv::Mat>& pyr_left);
+  // prior_shortcut: tracks with a stereo prior take stereo_prior_levels and stereo_prior_agree_px (otherwise the
+  // full check of the searched ones).
+  void stereoPass(const cv::Mat& left, const cv::Mat& right, bool stereo_clahe, bool prior_shortcut);
+  void matchStereo(const std::vector<cv::Mat>& pyr_left, bool prior_shortcut);
 
   PointTrackerOptions opt_;
   const CameraModel& cam0_;
