@@ -126,9 +126,12 @@ void EstimatorCore::updateCalibrationHolds() {
 
 void EstimatorCore::setCaptureShifts() {
   if (!time_offset_held_) return;
+  setCaptureShifts(time_offset_held_value_);
+}
+
+void EstimatorCore::setCaptureShifts(double td) {
   // The body at t - t_d to first order, as TimeShiftedFactor: (p - t_d v, R Exp(-t_d w)), written on the body side
   // with the rotation at this linearisation: T_W_B * (Exp(-t_d w), R^T (-t_d v)).
-  const double td = time_offset_held_value_;
   for (int k = 0; k < window_.size(); ++k) {
     WindowFrame& f = window_[k];
     f.capture_shift = Pose(expSO3(-td * (f.gyr - f.bg())), f.T_W_B().R().transpose() * (-td * f.v()));

@@ -94,6 +94,8 @@ class EstimatorCore {
   std::vector<ResidualSpec> zeroVelocityResiduals(int first, int last);
   /// all_right: every cam1 residual (the initialisation's solve), else as solver.right_residuals_all_frames says.
   void solveWindow(int max_iterations, bool all_right = false);
+  /// True when this solve holds the calibration blocks (solver.calibration_on_keyframes, a non-keyframe's solve).
+  bool holdCalibration(bool all_right) const;
   void solveWindowSchurLm(int max_iterations, bool all_right);
   /// Per-frame cost weights of the patent's point / line weighting (empty when lines.weighting is off).
   std::map<FrameId, double> frameWeights(bool for_lines) const;
@@ -132,6 +134,8 @@ class EstimatorCore {
   /// Sets every window frame's capture_shift for the held t_d (identity while t_d is estimated or not used): a
   /// held offset costs nothing in the solve, unlike the TimeShiftedFactor wrapper.
   void setCaptureShifts();
+  /// Every window frame's capture_shift for a time offset td, s.
+  void setCaptureShifts(double td);
   /// The camera-to-IMU time offset in use, s.
   double timeOffset() const { return time_offset_held_ ? time_offset_held_value_ : time_offset_[0]; }
   /// Hands the current rig correction to the landmarks (after a solve): residuals built from now on contain it.

@@ -59,6 +59,12 @@ std::vector<ResidualSpec> EstimatorCore::zeroVelocityResiduals(int first, int la
   return out;
 }
 
+bool EstimatorCore::holdCalibration(bool all_right) const {
+  // A per-frame solve of a frame that is not a keyframe: the frame leaves the window without entering the prior, so
+  // the calibration moves only in the keyframes' solves (and in the first solve, which takes every cam1 residual).
+  return options_.solver.calibration_on_keyframes && !all_right && !window_.empty() && !window_.newest().keyframe;
+}
+
 void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   repropagateIfNeeded();
   updateCalibrationHolds();
@@ -82,6 +88,11 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   if (options_.extrinsics.estimate) problem.AddParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_);
   if (stereoEstimated()) problem.AddParameterBlock(stereo_.data(), kPoseAmbientSize, &pose_manifold_);
   if (options_.time_offset.estimate) problem.AddParameterBlock(time_offset_.data(), 1);
+  if (holdCalibration(all_right)) {
+    if (options_.extrinsics.estimate) problem.SetParameterBlockConstant(rig_.data());
+    if (stereoEstimated()) problem.SetParameterBlockConstant(stereo_.data());
+    if (options_.time_offset.estimate) problem.SetParameterBlockConstant(time_offset_.data());
+  }
   // Keep the cost functions alive for the solve (the problem does not own them).
   std::vector<std::shared_ptr<ceres::CostFunction>> keep;
   std::vector<std::shared_ptr<PriorFactor>> prior_factors;
@@ -141,9 +152,16 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     solver.addParameterBlock(window_[k].pose.data(), kPoseAmbientSize, &pose_manifold_, false);
     solver.addParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize, nullptr, false);
   }
-  if (options_.extrinsics.estimate) solver.addParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_, false);
-  if (stereoEstimated()) solver.addParameterBlock(stereo_.data(), kPoseAmbientSize, &pose_manifold_, false);
-  if (options_.time_offset.estimate) solver.addParameterBlock(time_offset_.data(), 1, nullptr, false);
+  const bool hold = holdCalibration(all_right);
+  const auto addCalibration = [&](double* data, int size, const ceres::Manifold* manifold) {
+    if (hold)
+      solver.addConstantBlock(data, size);
+    else
+      solver.addParameterBlock(data, size, manifold, false);
+  };
+  if (options_.extrinsics.estimate) addCalibration(rig_.data(), kPoseAmbientSize, &pose_manifold_);
+  if (stereoEstimated()) addCalibration(stereo_.data(), kPoseAmbientSize, &pose_manifold_);
+  if (options_.time_offset.estimate) addCalibration(time_offset_.data(), 1, nullptr);
   std::vector<std::shared_ptr<PriorFactor>> prior_factors;
   for (const auto& prior : priors_) {
     std::vector<double*> blocks;
@@ -155,13 +173,17 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
   std::vector<ResidualSpec> imu = imuResiduals(1, window_.size() - 1);
   for (ResidualSpec& r : zeroVelocityResiduals(0, window_.size() - 1)) imu.push_back(std::move(r));
   for (const ResidualSpec& r : imu) solver.addResidual(r.cost.get(), nullptr, r.blocks);
+  // Held, the calibration is already in the landmarks' extrinsics (applyRig after each solve) and, while the time
+  // offset is estimated, goes into the frames' capture shifts for this solve: the residuals need no wrappers.
+  const bool shift_for_solve = hold && options_.time_offset.estimate && !time_offset_held_;
+  if (shift_for_solve) setCaptureShifts(time_offset_[0]);
   std::vector<ResidualSpec> visual = points_.residuals(window_, -1, all_right, frameWeights(false));
   {
     ScopedMs timer(&line_ms_);
     std::vector<ResidualSpec> lines = lines_.residuals(window_, -1, frameWeights(true));
     for (ResidualSpec& r : lines) visual.push_back(std::move(r));
   }
-  correctCalibration(&visual);
+  if (!hold) correctCalibration(&visual);
   std::set<BlockKey> landmarks;
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
@@ -182,6 +204,8 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     ScopedMs timer(&solver_ms_);
     solver.solve(so);
   }
+  if (shift_for_solve)
+    for (int k = 0; k < window_.size(); ++k) window_[k].capture_shift = Pose::identity();
   applyRig();
 }
 

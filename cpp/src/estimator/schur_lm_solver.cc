@@ -93,6 +93,13 @@ void SchurLmSolver::addParameterBlock(double* data, int ambient_size, const cere
   prepared_ = false;
 }
 
+void SchurLmSolver::addConstantBlock(double* data, int ambient_size) {
+  addParameterBlock(data, ambient_size, nullptr, false);
+  Block& b = blocks_.back();
+  b.constant = true;
+  b.tangent = 0;
+}
+
 void SchurLmSolver::addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss,
                                 std::span<double* const> blocks) {
   const std::vector<int32_t>& sizes = cost->parameter_block_sizes();
@@ -138,6 +145,8 @@ void SchurLmSolver::prepare() {
       lm.offset = eliminated_size_;
       eliminated_size_ += b.tangent;
       landmarks_.push_back(lm);
+    } else if (b.constant) {
+      b.offset = -1;
     } else {
       b.offset = reduced_size_;
       reduced_size_ += b.tangent;
@@ -189,7 +198,7 @@ void SchurLmSolver::prepare() {
     int* kept = kept_.data() + lm.kept_first;
     for (int k = 0; k < r.count; ++k) {
       const int bi = res_blocks_[static_cast<std::size_t>(r.first + k)];
-      if (blocks_[static_cast<std::size_t>(bi)].eliminate) continue;
+      if (blocks_[static_cast<std::size_t>(bi)].eliminate || blocks_[static_cast<std::size_t>(bi)].constant) continue;
       const int slot = static_cast<int>(std::find(kept, kept + lm.kept_count, bi) - kept);
       res_slots_[static_cast<std::size_t>(r.first + k)] = slot;
       if (slot == lm.kept_count) kept[lm.kept_count++] = bi;
@@ -220,7 +229,7 @@ void SchurLmSolver::prepare() {
   plus_jacobians_.resize(blocks_.size());
   block_of_row_.resize(static_cast<std::size_t>(reduced_size_));
   for (const Block& b : blocks_)
-    if (!b.eliminate) std::fill_n(block_of_row_.begin() + b.offset, b.tangent, b.offset);
+    if (!b.eliminate && !b.constant) std::fill_n(block_of_row_.begin() + b.offset, b.tangent, b.offset);
   prepared_ = true;
 }
 
@@ -235,7 +244,7 @@ double SchurLmSolver::evaluate(bool linearise) {
     // Manifold Jacobians at the linearisation point, once per block.
     for (std::size_t i = 0; i < blocks_.size(); ++i) {
       const Block& b = blocks_[i];
-      if (b.manifold == nullptr) continue;
+      if (b.manifold == nullptr || b.constant) continue;
       plus_jacobians_[i].resize(b.ambient, b.tangent);
       b.manifold->PlusJacobian(b.data, plus_jacobians_[i].data());
     }
@@ -256,7 +265,9 @@ double SchurLmSolver::evaluate(bool linearise) {
       const Block& b = blocks_[static_cast<std::size_t>(res_blocks[k])];
       param_ptrs_[k] = b.data;
       // Scratch: ambient Jacobian, then the tangent one (where a TangentJacobians factor writes a pose's directly).
-      J_ptrs[k] = p + (res.tangent != nullptr && b.pose ? static_cast<std::ptrdiff_t>(rows) * b.ambient : 0);
+      // None for a constant block.
+      J_ptrs[k] = b.constant ? nullptr
+                             : p + (res.tangent != nullptr && b.pose ? static_cast<std::ptrdiff_t>(rows) * b.ambient : 0);
       p += static_cast<std::ptrdiff_t>(rows) * (b.ambient + b.tangent);
     }
     double rho[3];
@@ -271,7 +282,7 @@ double SchurLmSolver::evaluate(bool linearise) {
     for (std::size_t k = 0; k < nb; ++k) {
       const std::size_t bi = static_cast<std::size_t>(res_blocks[k]);
       const Block& b = blocks_[bi];
-      if (res.tangent != nullptr && b.pose) continue;  // given in the tangent space
+      if (b.constant || (res.tangent != nullptr && b.pose)) continue;  // none, or given in the tangent space
       Map Ja(J_ptrs[k], rows, b.ambient);
       Map Jt(J_ptrs[k] + static_cast<std::ptrdiff_t>(rows) * b.ambient, rows, b.tangent);
       if (b.manifold != nullptr && rows == 2 && b.ambient == 7 && b.tangent == 6)
@@ -297,6 +308,7 @@ double SchurLmSolver::evaluate(bool linearise) {
       double alpha = 0.0;
       if (rho[2] > 0.0) alpha = 1.0 - std::sqrt(std::max(0.0, 1.0 + 2.0 * s * rho[2] / rho[1]));
       for (std::size_t k = 0; k < nb; ++k) {
+        if (blocks_[static_cast<std::size_t>(res_blocks[k])].constant) continue;
         Map Jt = tangent(k);
         if (alpha != 0.0) {
           const Eigen::RowVectorXd rJ = r.transpose() * Jt;
@@ -310,6 +322,7 @@ double SchurLmSolver::evaluate(bool linearise) {
     Landmark* lm = res.landmark >= 0 ? &landmarks_[static_cast<std::size_t>(res.landmark)] : nullptr;
     for (std::size_t a = 0; a < nb; ++a) {
       const Block& ba = blocks_[static_cast<std::size_t>(res_blocks[a])];
+      if (ba.constant) continue;
       const Map Ja = tangent(a);
       if (ba.eliminate) {
         MatMap H_ee = Hee(*lm);
@@ -330,7 +343,7 @@ double SchurLmSolver::evaluate(bool linearise) {
         g_.segment(ba.offset, ba.tangent).noalias() += Ja.transpose() * r;
       for (std::size_t b = a; b < nb; ++b) {
         const Block& bb = blocks_[static_cast<std::size_t>(res_blocks[b])];
-        if (bb.eliminate) continue;
+        if (bb.eliminate || bb.constant) continue;
         const Map Jb = tangent(b);
         double* dst = H_.data() + ba.offset + static_cast<Eigen::Index>(bb.offset) * reduced_size_;
         if (!addJtJFixed(rows, ba.tangent, bb.tangent, dst, reduced_size_, Ja.data(), Jb.data()))
@@ -491,7 +504,8 @@ void SchurLmSolver::plusBlock(const Block& b, const double* delta) {
 
 void SchurLmSolver::applyStep(const Eigen::VectorXd& dx_kept, const Eigen::VectorXd& dx_elim) {
   for (const Block& b : blocks_)
-    plusBlock(b, b.eliminate ? dx_elim.data() + landmarks_[static_cast<std::size_t>(b.offset)].offset
+    if (!b.constant)
+      plusBlock(b, b.eliminate ? dx_elim.data() + landmarks_[static_cast<std::size_t>(b.offset)].offset
                              : dx_kept.data() + b.offset);
 }
 

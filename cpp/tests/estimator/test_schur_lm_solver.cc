@@ -89,7 +89,7 @@ std::vector<double*> blocksOf(Problem& p, const Problem::Res& r) {
 
 // Ceres' LM with its dense Schur solver; `iterations` at most, converged tightly when there are enough.
 ceres::Solver::Summary solveCeres(Problem& p, const ceres::LossFunction* huber, const PoseManifold* manifold,
-                                  int iterations) {
+                                  int iterations, int constant_pose = -1) {
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -98,6 +98,7 @@ ceres::Solver::Summary solveCeres(Problem& p, const ceres::LossFunction* huber, 
   for (auto& b : p.poses) problem.AddParameterBlock(b.data(), 7, const_cast<PoseManifold*>(manifold));
   for (const auto& r : p.res)
     problem.AddResidualBlock(r.cost, r.robust ? const_cast<ceres::LossFunction*>(huber) : nullptr, blocksOf(p, r));
+  if (constant_pose >= 0) problem.SetParameterBlockConstant(p.poses[static_cast<std::size_t>(constant_pose)].data());
   ceres::Solver::Options o;
   o.linear_solver_type = ceres::DENSE_SCHUR;
   o.max_num_iterations = iterations;
@@ -108,9 +109,14 @@ ceres::Solver::Summary solveCeres(Problem& p, const ceres::LossFunction* huber, 
 }
 
 SchurLmSummary solveSchurLm(Problem& p, const ceres::LossFunction* huber, const PoseManifold* manifold,
-                            bool eliminate, int iterations) {
+                            bool eliminate, int iterations, int constant_pose = -1) {
   SchurLmSolver solver;
-  for (auto& b : p.poses) solver.addParameterBlock(b.data(), 7, manifold, false);
+  for (std::size_t i = 0; i < p.poses.size(); ++i) {
+    if (static_cast<int>(i) == constant_pose)
+      solver.addConstantBlock(p.poses[i].data(), 7);
+    else
+      solver.addParameterBlock(p.poses[i].data(), 7, manifold, false);
+  }
   for (double& d : p.inv_depth) solver.addParameterBlock(&d, 1, nullptr, eliminate);
   for (const auto& r : p.res) solver.addResidual(r.cost, r.robust ? huber : nullptr, blocksOf(p, r));
   SchurLmOptions o;
@@ -154,6 +160,26 @@ TEST(SchurLmSolver, EliminationGivesTheSameSteps) {
   EXPECT_EQ(sa.successful_steps, sb.successful_steps);
   EXPECT_NEAR(sa.final_cost, sb.final_cost, 1e-9 * sa.initial_cost);
   EXPECT_LT(maxDifference(a, b), 1e-9);
+}
+
+TEST(SchurLmSolver, ConstantBlocksReachCeresMinimumWithTheBlockHeld) {
+  // A pose held constant (as the calibration blocks are on non-keyframe solves): the same minimum as Ceres with
+  // SetParameterBlockConstant, and the held block's values untouched, bit for bit.
+  const ceres::HuberLoss huber(1.0);
+  const PoseManifold manifold;
+  for (const bool eliminate : {true, false}) {
+    Problem a = makeProblem(13, 2), b = makeProblem(13, 2);
+    const std::array<double, 7> held = b.poses[3];
+    EXPECT_TRUE(solveCeres(a, &huber, &manifold, 100, 3).IsSolutionUsable());
+    const SchurLmSummary s = solveSchurLm(b, &huber, &manifold, eliminate, 100, 3);
+    EXPECT_LT(s.final_cost, s.initial_cost);
+    EXPECT_EQ(b.poses[3], held);
+    EXPECT_LT(maxDifference(a, b), 1e-7) << "eliminate " << eliminate;
+    // Held, the minimum differs from the free one: the block really was constant.
+    Problem c = makeProblem(13, 2);
+    solveSchurLm(c, &huber, &manifold, eliminate, 100);
+    EXPECT_GT(maxDifference(b, c), 1e-4);
+  }
 }
 
 TEST(SchurLmSolver, FewIterationsDecreaseTheCostLikeCeres) {

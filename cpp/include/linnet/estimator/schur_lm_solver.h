@@ -67,6 +67,9 @@ class SchurLmSolver {
   /// `eliminate`: a landmark block, removed by the Schur complement (it may only share residuals with kept blocks,
   /// never with another eliminated block). The pointers must stay valid until solve() returns.
   void addParameterBlock(double* data, int ambient_size, const ceres::Manifold* manifold, bool eliminate);
+  /// Registers a block that the residuals read but the solve leaves as it is (Ceres' SetParameterBlockConstant): no
+  /// Jacobian is asked for it and it has no rows in the system.
+  void addConstantBlock(double* data, int ambient_size);
   /// Adds a residual over registered blocks (in the cost function's order). `loss` may be nullptr.
   void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss, std::span<double* const> blocks);
   void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss,
@@ -89,7 +92,8 @@ class SchurLmSolver {
     const ceres::Manifold* manifold;
     bool eliminate;
     bool pose = false;  // a pose block (7, PoseManifold): TangentJacobians factors give its tangent Jacobian
-    int offset;  // kept blocks: offset in the reduced system; eliminated blocks: index into landmarks_
+    bool constant = false;  // read only (addConstantBlock)
+    int offset;  // kept blocks: offset in the reduced system; eliminated blocks: index into landmarks_; constant: -1
   };
   struct Residual {
     const ceres::CostFunction* cost;
