@@ -153,6 +153,7 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     solver.addParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize, nullptr, false);
   }
   const bool hold = holdCalibration(all_right);
+  const bool hold_lines = options_.solver.lines_on_keyframes && !all_right && !window_.newest().keyframe;
   const auto addCalibration = [&](double* data, int size, const ceres::Manifold* manifold) {
     if (hold)
       solver.addConstantBlock(data, size);
@@ -188,7 +189,9 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
       if (r.keys[b] >= 0 || !landmarks.insert(r.keys[b]).second) continue;
-      if (r.line)
+      if (r.line && hold_lines)
+        solver.addConstantBlock(r.blocks[b], kLineAmbientSize);
+      else if (r.line)
         solver.addParameterBlock(r.blocks[b], kLineAmbientSize, &line_manifold_, true);
       else
         solver.addParameterBlock(r.blocks[b], 1, nullptr, true);
