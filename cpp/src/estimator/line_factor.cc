@@ -1,6 +1,7 @@
 // Line residual (DESIGN B1) with analytic Jacobians; the derivation is in the comments of evaluate().
 #include "linnet/estimator/factors/line_factor.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -16,12 +17,28 @@ LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, con
       t_B_C_(T_B_C.p),
       sqrt_info_(sqrt_info) {}
 
+void LineReprojectionFactor::poseTerms(const Pose& T_W_B, bool with_K, PoseTerms* terms) const {
+  terms->Rt = T_W_B.R().transpose();
+  terms->p = T_W_B.p;
+  terms->has_K = with_K;
+  // d (n_B - t x v_B) / d v_W through d n_B / d v_W = -R^T [p]x and d v_B / d v_W = R^T (see evaluateWith).
+  if (with_K) terms->K = -terms->Rt * skew(terms->p) - skew(t_B_C_) * terms->Rt;
+}
+
 bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual,
                                       Eigen::Matrix<double, 2, 6>* J_pose, Eigen::Matrix<double, 2, 6>* J_line) const {
+  PoseTerms terms;
+  poseTerms(T_W_B, J_line != nullptr, &terms);
+  return evaluateWith(terms, L_W, residual, J_pose, J_line);
+}
+
+bool LineReprojectionFactor::evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2* residual,
+                                          Eigen::Matrix<double, 2, 6>* J_pose,
+                                          Eigen::Matrix<double, 2, 6>* J_line) const {
   // Plücker W -> B -> C:  n_B = R^T (n_W - p x v_W), v_B = R^T v_W;  n_C = R_C_B (n_B - t_B_C x v_B).
-  const Mat3 Rt = T_W_B.R().transpose();
+  const Mat3& Rt = terms.Rt;
   const Vec3 n_W = L_W.head<3>(), v_W = L_W.tail<3>();
-  const Vec3 n_B = Rt * (n_W - T_W_B.p.cross(v_W));
+  const Vec3 n_B = Rt * (n_W - terms.p.cross(v_W));
   const Vec3 v_B = Rt * v_W;
   const Mat3& R_C_B = R_C_B_;
   const Vec3& t = t_B_C_;
@@ -49,9 +66,9 @@ bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* 
     J_pose->rightCols<3>() = A_B * (skew(n_B) - skew(t) * skew(v_B));
   }
   if (J_line != nullptr) {
-    // d n_B / d n_W = R^T;  d n_B / d v_W = -R^T [p]x;  d v_B / d v_W = R^T.
+    // d n_B / d n_W = R^T;  d n_B / d v_W = -R^T [p]x;  d v_B / d v_W = R^T: the v_W part is K (poseTerms).
     J_line->leftCols<3>() = A_B * Rt;
-    J_line->rightCols<3>() = A_B * (-Rt * skew(T_W_B.p) - skew(t) * Rt);
+    J_line->rightCols<3>() = A_B * terms.K;
   }
   return true;
 }
@@ -62,8 +79,15 @@ bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameter
   const bool want_line = jacobians != nullptr && jacobians[1] != nullptr;
   Vec2 r;
   Eigen::Matrix<double, 2, 6> Jp, Jl;
-  if (!evaluate(poseFromBlock(parameters[0]), Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
-                want_line ? &Jl : nullptr))
+  // The pose's terms from the cache when the pose block holds the same values (the line iterations), else anew.
+  const double* pose = parameters[0];
+  if (!cache_.valid || (want_line && !cache_.has_K) || !std::equal(pose, pose + 7, cache_.block.begin())) {
+    poseTerms(poseFromBlock(pose), want_line || cache_.has_K, &cache_);
+    std::copy(pose, pose + 7, cache_.block.begin());
+    cache_.valid = true;
+  }
+  if (!evaluateWith(cache_, Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
+                    want_line ? &Jl : nullptr))
     return false;
   residuals[0] = r.x();
   residuals[1] = r.y();

@@ -91,6 +91,45 @@ TEST(LineFactor, ReprojectionErrorFromTheInverseCameraPoseIsTheSame) {
   }
 }
 
+TEST(LineFactor, CachedPoseTermsGiveThePlainResultBitForBit) {
+  // evaluateTangentSpace keeps the last pose's terms (the line iterations evaluate one factor at one pose many
+  // times): every call, whatever came before it (same pose, another pose, only the residual, only the line's
+  // Jacobian), must equal a fresh evaluate() exactly.
+  std::mt19937 rng(17);
+  Scene a = makeScene(rng, 0.004), b = makeScene(rng, 0.004);
+  LineReprojectionFactor f(a.s, a.e, a.T_B_C, 460.0 / 1.5);
+  double pose_a[7], pose_b[7], line[6];
+  setPose(a.T_W_B, pose_a);
+  setPose(b.T_W_B, pose_b);
+  std::copy(a.L_W.data(), a.L_W.data() + 6, line);
+  const auto check = [&](const double* pose, bool want_pose, bool want_line) {
+    double r[2], jp[12], jl[12];
+    double* jac[2] = {want_pose ? jp : nullptr, want_line ? jl : nullptr};
+    const double* params[2] = {pose, line};
+    ASSERT_TRUE(f.evaluateTangentSpace(params, r, (want_pose || want_line) ? jac : nullptr));
+    Vec2 r0;
+    Eigen::Matrix<double, 2, 6> Jp0, Jl0;
+    ASSERT_TRUE(f.evaluate(poseFromBlock(pose), Eigen::Map<const Vec6>(line), &r0, &Jp0, &Jl0));
+    EXPECT_EQ(r[0], r0.x());
+    EXPECT_EQ(r[1], r0.y());
+    using RowMajor26 = Eigen::Matrix<double, 2, 6, Eigen::RowMajor>;
+    if (want_pose) {
+      EXPECT_EQ(Eigen::Map<RowMajor26>(jp), Jp0);
+    }
+    if (want_line) {
+      EXPECT_EQ(Eigen::Map<RowMajor26>(jl), Jl0);
+    }
+  };
+  check(pose_a, false, false);  // residual only: no K yet
+  check(pose_a, false, true);   // the line's Jacobian at the same pose: K added
+  check(pose_a, false, true);   // from the cache
+  line[0] += 1e-3;              // the line moves, the pose does not
+  check(pose_a, false, true);
+  check(pose_b, true, true);    // another pose
+  check(pose_a, true, false);
+  check(pose_a, false, true);
+}
+
 TEST(LineFactor, JacobiansMatchNumericCam0AndCam1) {
   std::mt19937 rng(11);
   const PoseManifold pose_manifold;

@@ -11,6 +11,8 @@
 // the tangent space [dp, dtheta] (as it is for the Schur solver, converted by tangentToAmbientPose() for Ceres).
 #pragma once
 
+#include <array>
+
 #include <ceres/sized_cost_function.h>
 
 #include "linnet/core/pose.h"
@@ -37,6 +39,23 @@ class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public 
                 Eigen::Matrix<double, 2, 6>* J_line) const;
 
  private:
+  // The pose's share of the evaluation: R^T, p and, for the line Jacobian, K = d(n_B - t x v_B)/d v_W =
+  // -R^T [p]x - [t]x R^T. The window solver's line iterations evaluate each factor several times at one pose (only the
+  // line moves), so evaluateTangentSpace keeps the last pose's terms. The cache makes concurrent evaluations of one
+  // factor object unsafe; the window solves are single-threaded.
+  struct PoseTerms {
+    std::array<double, 7> block{};  // the pose block they were computed from
+    Mat3 Rt;
+    Vec3 p;
+    Mat3 K;
+    bool valid = false;
+    bool has_K = false;
+  };
+  void poseTerms(const Pose& T_W_B, bool with_K, PoseTerms* terms) const;
+  bool evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose,
+                    Eigen::Matrix<double, 2, 6>* J_line) const;
+  mutable PoseTerms cache_;
+
   Vec3 s_, e_;  // homogenised endpoints
   Mat3 R_C_B_;  // the camera's extrinsics T_B_C: its rotation (transposed, converted from the quaternion once)
   Vec3 t_B_C_;  // and its position in B
