@@ -94,8 +94,9 @@ class EstimatorCore {
   std::vector<ResidualSpec> zeroVelocityResiduals(int first, int last);
   /// all_right: every cam1 residual (the initialisation's solve), else as solver.right_residuals_all_frames says.
   void solveWindow(int max_iterations, bool all_right = false);
-  /// True when this solve holds the calibration blocks (solver.calibration_on_keyframes, a non-keyframe's solve).
-  bool holdCalibration(bool all_right) const;
+  /// True for the per-frame solve of a frame that is not a keyframe (solver.calibration_on_keyframes and
+  /// solver.lines_on_keyframes hold blocks in it).
+  bool nonKeyframeSolve(bool all_right) const;
   void solveWindowSchurLm(int max_iterations, bool all_right);
   /// Per-frame cost weights of the patent's point / line weighting (empty when lines.weighting is off).
   std::map<FrameId, double> frameWeights(bool for_lines) const;

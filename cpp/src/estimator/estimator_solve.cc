@@ -59,10 +59,10 @@ std::vector<ResidualSpec> EstimatorCore::zeroVelocityResiduals(int first, int la
   return out;
 }
 
-bool EstimatorCore::holdCalibration(bool all_right) const {
-  // A per-frame solve of a frame that is not a keyframe: the frame leaves the window without entering the prior, so
-  // the calibration moves only in the keyframes' solves (and in the first solve, which takes every cam1 residual).
-  return options_.solver.calibration_on_keyframes && !all_right && !window_.empty() && !window_.newest().keyframe;
+bool EstimatorCore::nonKeyframeSolve(bool all_right) const {
+  // A per-frame solve of a frame that is not a keyframe: the frame leaves the window without entering the prior (the
+  // first solve, which takes every cam1 residual, is never one).
+  return !all_right && !window_.empty() && !window_.newest().keyframe;
 }
 
 void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
@@ -88,7 +88,7 @@ void EstimatorCore::solveWindow(int max_iterations, bool all_right) {
   if (options_.extrinsics.estimate) problem.AddParameterBlock(rig_.data(), kPoseAmbientSize, &pose_manifold_);
   if (stereoEstimated()) problem.AddParameterBlock(stereo_.data(), kPoseAmbientSize, &pose_manifold_);
   if (options_.time_offset.estimate) problem.AddParameterBlock(time_offset_.data(), 1);
-  if (holdCalibration(all_right)) {
+  if (options_.solver.calibration_on_keyframes && nonKeyframeSolve(all_right)) {
     if (options_.extrinsics.estimate) problem.SetParameterBlockConstant(rig_.data());
     if (stereoEstimated()) problem.SetParameterBlockConstant(stereo_.data());
     if (options_.time_offset.estimate) problem.SetParameterBlockConstant(time_offset_.data());
@@ -152,8 +152,8 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     solver.addParameterBlock(window_[k].pose.data(), kPoseAmbientSize, &pose_manifold_, false);
     solver.addParameterBlock(window_[k].speed_bias.data(), kSpeedBiasSize, nullptr, false);
   }
-  const bool hold = holdCalibration(all_right);
-  const bool hold_lines = options_.solver.lines_on_keyframes && !all_right && !window_.newest().keyframe;
+  const bool hold = options_.solver.calibration_on_keyframes && nonKeyframeSolve(all_right);
+  const bool hold_lines = options_.solver.lines_on_keyframes && nonKeyframeSolve(all_right);
   const auto addCalibration = [&](double* data, int size, const ceres::Manifold* manifold) {
     if (hold)
       solver.addConstantBlock(data, size);

@@ -110,7 +110,8 @@ bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const
   }
   if (!lm.has_extent || (lm.b - lm.a).norm() > options_.max_length_m) return reject();
   lm.triangulated = true;
-  if (meanErrorPx(WindowCameras(window, T_B_C0_, T_B_C1_), lm) > options_.outlier_px) return reject();
+  std::vector<std::array<double, 2>> errors;
+  if (sightingErrorsPx(WindowCameras(window, T_B_C0_, T_B_C1_), lm, &errors) > options_.outlier_px) return reject();
   return true;
 }
 
@@ -228,17 +229,25 @@ void LineLandmarks::clear() {
   landmarks_.clear();
 }
 
-double LineLandmarks::meanErrorPx(const WindowCameras& cams, const LineLandmark& lm) const {
+double LineLandmarks::sightingErrorsPx(const WindowCameras& cams, const LineLandmark& lm,
+                                       std::vector<std::array<double, 2>>* errors) const {
   const Vec6 L = lm.L();
+  errors->clear();
   double sum = 0.0;
   int n = 0;
   for (const auto& [fid, o] : lm.obs) {
     const Pose* c0 = cams.cam0(fid);
-    if (c0 == nullptr) continue;
-    sum += lineReprojectionErrorPxFromCw(L, *c0, o.s0, o.e0, focal_length_);
+    if (c0 == nullptr) {
+      errors->push_back({std::numeric_limits<double>::quiet_NaN(), 0.0});
+      continue;
+    }
+    const double e0 = lineReprojectionErrorPxFromCw(L, *c0, o.s0, o.e0, focal_length_);
+    const double e1 = o.has_right ? lineReprojectionErrorPxFromCw(L, *cams.cam1(fid), o.s1, o.e1, focal_length_) : 0.0;
+    errors->push_back({e0, e1});
+    sum += e0;
     ++n;
     if (o.has_right) {
-      sum += lineReprojectionErrorPxFromCw(L, *cams.cam1(fid), o.s1, o.e1, focal_length_);
+      sum += e1;
       ++n;
     }
   }
@@ -297,26 +306,7 @@ int LineLandmarks::rejectOutliers(const Window& window) {
     const Vec6 L = lm.L();
     bool bad = false;
     // Each sighting's error once: their mean judges the line, each alone its sighting.
-    errors.clear();
-    double sum = 0.0;
-    int n = 0;
-    for (const auto& [fid, o] : lm.obs) {
-      const Pose* c0 = cams.cam0(fid);
-      if (c0 == nullptr) {
-        errors.push_back({std::numeric_limits<double>::quiet_NaN(), 0.0});
-        continue;
-      }
-      const double e0 = lineReprojectionErrorPxFromCw(L, *c0, o.s0, o.e0, focal_length_);
-      const double e1 = o.has_right ? lineReprojectionErrorPxFromCw(L, *cams.cam1(fid), o.s1, o.e1, focal_length_) : 0.0;
-      errors.push_back({e0, e1});
-      sum += e0;
-      ++n;
-      if (o.has_right) {
-        sum += e1;
-        ++n;
-      }
-    }
-    if (!L.allFinite() || (n == 0 ? 0.0 : sum / n) > options_.outlier_px) {
+    if (!L.allFinite() || sightingErrorsPx(cams, lm, &errors) > options_.outlier_px) {
       ++rejections_.reprojection;
       bad = true;
     } else {

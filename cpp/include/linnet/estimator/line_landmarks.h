@@ -118,8 +118,10 @@ class LineLandmarks {
   enum class BadPart { kNone, kCam0, kCam1 };
   BadPart badPart(double cam0_px, double cam1_px, const LineFrameObs& o) const;
 
-  /// Mean endpoint distance in pixels over the line's window observations (cam0 and cam1).
-  double meanErrorPx(const WindowCameras& cams, const LineLandmark& lm) const;
+  /// Each of the line's observations' cam0 / cam1 endpoint distance in pixels into *errors, in order (cam0 NaN for a
+  /// frame not in the window, cam1 0 without a match); returns their mean over cam0 and the matched cam1 sightings.
+  double sightingErrorsPx(const WindowCameras& cams, const LineLandmark& lm,
+                          std::vector<std::array<double, 2>>* errors) const;
   /// Back-projects an observed segment onto the line: the two 3D points, false if a ray misses the depth range.
   bool backProject(const Vec6& L, const Pose& T_W_C, const Vec2& s, const Vec2& e, Vec3* a, Vec3* b) const;
   /// Extends the line's extent by a back-projected segment (keeps the two extreme points along the line).
