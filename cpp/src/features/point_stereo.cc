@@ -5,9 +5,9 @@
 #include <cmath>
 
 #include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
 
 #include "linnet/core/error.h"
+#include "linnet/features/klt_round_trip.h"
 
 namespace linnet {
 
@@ -146,9 +146,6 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
       from_prior.push_back(prior && std::isfinite((*prior)[i].x) && std::isfinite((*prior)[i].y) ? 1 : 0);
     }
   if (!idx.empty()) {
-    const cv::Size win(p.klt_window_px, p.klt_window_px);
-    const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, p.klt_max_iterations,
-                                p.klt_epsilon);
     const int levels = std::min(p.klt_levels, std::max(1, lvl));
     const int prior_levels = p.prior_levels < 0 ? levels : std::min(levels, p.prior_levels);
     const double agree2 = p.prior_agree_px * p.prior_agree_px;
@@ -165,33 +162,27 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
           l.push_back(left[k]);
           r.push_back(right[k]);
         }
-      if (ks.empty()) return;
-      std::vector<unsigned char> st_f, st_b;
-      cv::calcOpticalFlowPyrLK(pyr0, pyr1, l, r, st_f, cv::noArray(), win, group_levels, crit,
-                               cv::OPTFLOW_USE_INITIAL_FLOW, p.klt_min_eigen);
-      std::vector<cv::Point2f> fwd, back;
-      std::vector<std::size_t> fwd_k;
+      KltRoundTripParams kp;
+      kp.window = cv::Size(p.klt_window_px, p.klt_window_px);
+      kp.criteria = cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, p.klt_max_iterations,
+                                     p.klt_epsilon);
+      kp.min_eigen = p.klt_min_eigen;
+      kp.levels = kp.back_levels = group_levels;
+      kp.threshold_px = p.fb_threshold_px;
+      const std::vector<unsigned char> kept =
+          kltRoundTrip(pyr0, pyr1, l, &r, kp, [&](std::size_t j, const cv::Point2f& q) {
+            const std::size_t k = ks[j];
+            if (!cam1.inImage(Vec2(q.x, q.y), p.border_px)) return RoundTrip::kDrop;
+            const cv::Point2f moved = q - guess[idx[k]];
+            if (from_prior[k] && agree2 > 0.0 && moved.dot(moved) <= agree2) {
+              ++st.round_trip_skipped;
+              return RoundTrip::kKeep;
+            }
+            return RoundTrip::kCheck;
+          });
       for (std::size_t j = 0; j < ks.size(); ++j) {
-        const std::size_t k = ks[j];
-        right[k] = r[j];
-        if (!st_f[j] || !cam1.inImage(Vec2(r[j].x, r[j].y), p.border_px)) continue;
-        const cv::Point2f moved = r[j] - guess[idx[k]];
-        if (from_prior[k] && agree2 > 0.0 && moved.dot(moved) <= agree2) {
-          round_trip[k] = 1;
-          ++st.round_trip_skipped;
-          continue;
-        }
-        fwd_k.push_back(k);
-        fwd.push_back(r[j]);
-        back.push_back(left[k]);
-      }
-      if (fwd.empty()) return;
-      cv::calcOpticalFlowPyrLK(pyr1, pyr0, fwd, back, st_b, cv::noArray(), win, group_levels, crit,
-                               cv::OPTFLOW_USE_INITIAL_FLOW, p.klt_min_eigen);
-      const double fb2 = p.fb_threshold_px * p.fb_threshold_px;
-      for (std::size_t j = 0; j < fwd_k.size(); ++j) {
-        const cv::Point2f d = back[j] - left[fwd_k[j]];
-        round_trip[fwd_k[j]] = st_b[j] && d.dot(d) <= fb2;
+        right[ks[j]] = r[j];
+        round_trip[ks[j]] = kept[j];
       }
     };
     if (prior_levels == levels) {

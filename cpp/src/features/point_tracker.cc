@@ -13,6 +13,7 @@
 
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
+#include "linnet/features/klt_round_trip.h"
 #include "linnet/features/point_detection.h"
 #include "linnet/features/point_ransac.h"
 #include "linnet/features/point_stereo.h"
@@ -217,9 +218,6 @@ void PointTracker::kltForwardBackward(const std::vector<cv::Point2f>& prev, cons
                                       const std::vector<std::size_t>& which, int levels, std::vector<cv::Point2f>* cur,
                                       std::vector<unsigned char>* ok) const {
   if (which.empty()) return;
-  const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
-  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, opt_.klt_max_iterations,
-                              opt_.klt_epsilon);
   std::vector<cv::Point2f> from, to;
   from.reserve(which.size());
   to.reserve(which.size());
@@ -227,31 +225,22 @@ void PointTracker::kltForwardBackward(const std::vector<cv::Point2f>& prev, cons
     from.push_back(prev[i]);
     to.push_back(start[i]);
   }
-  std::vector<unsigned char> st_f, st_b;
-  // The KLT error output is not used: cv::noArray() spares OpenCV computing it.
-  cv::calcOpticalFlowPyrLK(pyr_prev_, pyr_cur_, from, to, st_f, cv::noArray(), win, levels, crit,
-                           cv::OPTFLOW_USE_INITIAL_FLOW, opt_.klt_min_eigen);
-  // Backward check, only for the points the forward pass kept (and inside the image). It starts at the previous
-  // position; fewer levels are cheaper but weaker (VINS-Fusion uses 1).
-  std::vector<cv::Point2f> fwd, back;
-  std::vector<std::size_t> fwd_idx;
+  KltRoundTripParams p;
+  p.window = cv::Size(opt_.klt_window_px, opt_.klt_window_px);
+  p.criteria = cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, opt_.klt_max_iterations,
+                                opt_.klt_epsilon);
+  p.min_eigen = opt_.klt_min_eigen;
+  p.levels = levels;
+  // The backward check: fewer levels are cheaper but weaker (VINS-Fusion uses 1).
+  p.back_levels = std::min(opt_.fb_pyramid_levels, levels);
+  p.threshold_px = opt_.fb_threshold_px;
+  const std::vector<unsigned char> kept =
+      kltRoundTrip(pyr_prev_, pyr_cur_, from, &to, p, [&](std::size_t, const cv::Point2f& q) {
+        return cam0_.inImage(toEigen(q), opt_.border_px) ? RoundTrip::kCheck : RoundTrip::kDrop;
+      });
   for (std::size_t k = 0; k < which.size(); ++k) {
     (*cur)[which[k]] = to[k];
-    (*ok)[which[k]] = 0;
-    if (st_f[k] && cam0_.inImage(toEigen(to[k]), opt_.border_px)) {
-      fwd_idx.push_back(k);
-      fwd.push_back(to[k]);
-      back.push_back(from[k]);
-    }
-  }
-  if (fwd.empty()) return;
-  cv::calcOpticalFlowPyrLK(pyr_cur_, pyr_prev_, fwd, back, st_b, cv::noArray(), win,
-                           std::min(opt_.fb_pyramid_levels, levels), crit, cv::OPTFLOW_USE_INITIAL_FLOW,
-                           opt_.klt_min_eigen);
-  const double fb2 = opt_.fb_threshold_px * opt_.fb_threshold_px;
-  for (std::size_t j = 0; j < fwd_idx.size(); ++j) {
-    const cv::Point2f d = back[j] - from[fwd_idx[j]];
-    (*ok)[which[fwd_idx[j]]] = st_b[j] && d.dot(d) <= fb2;
+    (*ok)[which[k]] = kept[k];
   }
 }
 
