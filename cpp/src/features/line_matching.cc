@@ -281,4 +281,26 @@ int matchStereo(const StereoMatchOptions& options, const Pose& T_C1_C0, const st
                           options.ratio, match_of_left);
 }
 
+Vec2 neighbourFlow(const LineSegment& seg, const std::vector<LineSegment>& donor_segs,
+                   const std::vector<Vec2>& donor_flows, int count) {
+  if (donor_segs.size() != donor_flows.size())
+    throw UsageError("neighbourFlow: donor segments and flows differ in size");
+  if (count <= 0 || donor_segs.empty()) return Vec2::Zero();
+  const Vec2 m = seg.midpoint();
+  std::vector<std::pair<double, std::size_t>> near(donor_segs.size());
+  for (std::size_t j = 0; j < donor_segs.size(); ++j) near[j] = {(donor_segs[j].midpoint() - m).squaredNorm(), j};
+  const std::size_t k = std::min(near.size(), static_cast<std::size_t>(count));
+  std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
+  constexpr double kRidge = 0.05;  // in units of one donor's weight
+  Mat2 A = kRidge * Mat2::Identity();
+  Vec2 b = Vec2::Zero();
+  for (std::size_t q = 0; q < k; ++q) {
+    const LineSegment& d = donor_segs[near[q].second];
+    const Vec2 u = d.direction(), n(-u.y(), u.x());
+    A += n * n.transpose();
+    b += n * n.dot(donor_flows[near[q].second]);
+  }
+  return A.ldlt().solve(b);
+}
+
 }  // namespace linnet

@@ -320,13 +320,23 @@ int LineTracker::predictLeft(const cv::Mat& left, const std::vector<const Track*
   desc_l_.clear();
   described_l_.clear();
   match_of_cur->clear();
+  // Lines delivered last frame with a measured flow lend it to those without one (new last frame).
+  std::vector<LineSegment> donor_segs;
+  std::vector<Vec2> donor_flows;
+  for (std::size_t k = 0; k < prev.size(); ++k) {
+    if (prev[k]->length < 2 || prev[k]->missed > 0 || prev[k]->tentative) continue;
+    donor_segs.push_back(prev_segs[k]);
+    donor_flows.push_back(prev[k]->flow);
+  }
   for (std::size_t k = 0; k < prev.size(); ++k) {
     const Track& tr = *prev[k];
     LineSegment seg = prev_segs[k];
     if (!(seg.length() > 1.0)) continue;
     // Moved across itself by its last flow (along the line a segment's ends are not observed: that part is noise).
+    const Vec2 flow =
+        tr.length >= 2 ? tr.flow : neighbourFlow(seg, donor_segs, donor_flows, to.predicted_flow_neighbours);
     const Vec2 d = seg.direction(), n(-d.y(), d.x());
-    const Vec2 shift = n * (n.dot(tr.flow) * dt * (1 + tr.missed));
+    const Vec2 shift = n * (n.dot(flow) * dt * (1 + tr.missed));
     seg.s += shift;
     seg.e += shift;
     const auto tr0 = Clock::now();

@@ -31,9 +31,13 @@ std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask,
       const cv::Rect cell(gx * image.cols / cols, gy * image.rows / rows,
                           (gx + 1) * image.cols / cols - gx * image.cols / cols,
                           (gy + 1) * image.rows / rows - gy * image.rows / rows);
-      if (cell.area() == 0 || cv::countNonZero(mask(cell)) == 0) continue;
-      const cv::Rect roi = cv::Rect(cell.x - kFastMargin, cell.y - kFastMargin, cell.width + 2 * kFastMargin,
-                                    cell.height + 2 * kFastMargin) &
+      if (cell.area() == 0) continue;
+      // Only the part of the cell with free mask pixels is searched (its bounding box): the corners elsewhere would
+      // be dropped by the mask test below.
+      const cv::Rect free = cv::boundingRect(mask(cell));
+      if (free.area() == 0) continue;
+      const cv::Rect roi = cv::Rect(cell.x + free.x - kFastMargin, cell.y + free.y - kFastMargin,
+                                    free.width + 2 * kFastMargin, free.height + 2 * kFastMargin) &
                            cv::Rect(0, 0, image.cols, image.rows);
       kps.clear();
       cv::FAST(image(roi), kps, threshold, /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);

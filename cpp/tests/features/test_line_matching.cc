@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "linnet/core/error.h"
 #include "linnet/features/line_matching.h"
 
 namespace linnet {
@@ -82,6 +83,44 @@ TEST(LineMatching, TemporalRejectsFlowOutliersAndGuidedPassRecoversChangedDescri
   opt.guided_max_hamming = 90;  // bound below its 100 bits
   matchTemporal(opt, s.prev, s.prev_desc, s.cur, s.cur_desc, centre, &m);
   EXPECT_EQ(m[14], -1);
+}
+
+TEST(LineMatching, NeighbourFlowFitsTheDonorsNormalComponents) {
+  // Donors of several directions moving with one flow f, their measured flows carrying noise along themselves (the
+  // unobserved part): the fit recovers f from the normal components alone. Far donors beyond `count` do not count.
+  const Vec2 f(-35.0, 12.0);
+  std::vector<LineSegment> segs;
+  std::vector<Vec2> flows;
+  for (int k = 0; k < 6; ++k) {
+    const double a = 0.5 * k;
+    const Vec2 mid(300.0 + 20.0 * k, 200.0 - 10.0 * k), u(std::cos(a), std::sin(a));
+    segs.push_back({mid - 30.0 * u, mid + 30.0 * u});
+    flows.push_back(f + (k % 2 ? 40.0 : -25.0) * u);  // along-line noise
+  }
+  segs.push_back({Vec2(700.0, 450.0), Vec2(740.0, 460.0)});  // far away, moving otherwise
+  flows.push_back(Vec2(500.0, -500.0));
+  const LineSegment target{Vec2(330.0, 150.0), Vec2(360.0, 190.0)};
+  const Vec2 got = neighbourFlow(target, segs, flows, 6);
+  // The ridge (0.05 of one donor) pulls the fit towards zero by a few per cent at most.
+  EXPECT_NEAR(got.x(), f.x(), 0.03 * f.norm());
+  EXPECT_NEAR(got.y(), f.y(), 0.03 * f.norm());
+  // With the far donor among the neighbours, the fit moves.
+  EXPECT_GT((neighbourFlow(target, segs, flows, 7) - f).norm(), 10.0);
+
+  // Parallel donors (horizontal) tell only the vertical flow: the horizontal part stays at zero.
+  std::vector<LineSegment> par;
+  std::vector<Vec2> par_flows;
+  for (int k = 0; k < 4; ++k) {
+    par.push_back({Vec2(100.0, 100.0 + 30.0 * k), Vec2(200.0, 100.0 + 30.0 * k)});
+    par_flows.push_back(Vec2(80.0 + 10.0 * k, -20.0));
+  }
+  const Vec2 p = neighbourFlow(target, par, par_flows, 6);
+  EXPECT_NEAR(p.x(), 0.0, 1e-9);
+  EXPECT_NEAR(p.y(), -20.0 * 4.0 / 4.05, 1e-9);
+
+  EXPECT_EQ(neighbourFlow(target, {}, {}, 6), Vec2::Zero());
+  EXPECT_EQ(neighbourFlow(target, segs, flows, 0), Vec2::Zero());
+  EXPECT_THROW(neighbourFlow(target, segs, {Vec2::Zero()}, 6), UsageError);
 }
 
 }  // namespace

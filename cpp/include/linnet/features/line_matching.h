@@ -32,6 +32,8 @@ struct TemporalMatchOptions {
   double predicted_min_support = 0.6;    // fraction of the refinement's samples that must find the edge
   int predicted_max_hamming = 70;        // descriptor distance to the track's, bits (256 = no check)
   double predicted_min_fraction = 0.7;   // found / delivered last frame below this: the frame is detected instead
+  int predicted_flow_neighbours = 6;     // a line new last frame moves by the flow fitted to this many nearest lines
+                                         // (0: by the rotation only)
 
   template <class V>
   void visit(V& v) {
@@ -53,6 +55,8 @@ struct TemporalMatchOptions {
     v("predicted_max_hamming", predicted_max_hamming, "predicted lines: descriptor distance, bits", 0, 256);
     v("predicted_min_fraction", predicted_min_fraction, "predicted frame: lines found / delivered last frame", 0.0,
       1.0);
+    v("predicted_flow_neighbours", predicted_flow_neighbours,
+      "predicted lines new last frame: nearest lines whose flow they take (0 = rotation only)", 0, 100);
   }
 };
 
@@ -120,6 +124,13 @@ int matchTemporal(const TemporalMatchOptions& options, const std::vector<LineSeg
                   const std::vector<LbdDescriptor>& prev_desc, const std::vector<LineSegment>& cur,
                   const std::function<const LbdDescriptor&(int)>& cur_desc, const Vec2& centre,
                   std::vector<int>* match_of_cur);
+
+/// A flow (pixels per second) for a line that has none yet (new last frame), from the measured flows of the `count`
+/// lines with the nearest midpoints (donor_segs / donor_flows parallel). A donor tells only its flow across itself
+/// (its endpoints along the line are noise), so this is the least-squares fit of n_j . f = n_j . flow_j; a small ridge
+/// keeps a direction no donor constrains (all parallel) at zero. Zero without donors or for count <= 0.
+Vec2 neighbourFlow(const LineSegment& seg, const std::vector<LineSegment>& donor_segs,
+                   const std::vector<Vec2>& donor_flows, int count);
 
 /// Epipolar test of a left / right pair in normalised coordinates. On success, *overlap is the overlap ratio,
 /// q_s, q_e (optional) the points of the right line corresponding to the left endpoints and depth (optional) the
