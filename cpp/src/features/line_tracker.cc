@@ -430,8 +430,13 @@ void LineTracker::matchRight(const cv::Mat& right, const std::vector<LineSegment
   };
   const auto with_prior = std::count_if(track_of_left.begin(), track_of_left.end(),
                                         [&](int ti) { return hasPrior(tracks_[ti]); });
+  // Staggered with predicted left lines: the right image is detected on the frames whose left lines are predicted
+  // and guided on those whose left image is detected, so that every frame has one full detection.
+  const bool due = so.stagger_with_left && options_.temporal.detect_interval > 1
+                       ? !tm->left_detected
+                       : frames_since_detection_ + 1 >= so.detect_interval;
   const bool guided_frame =
-      frames_since_detection_ + 1 < so.detect_interval && with_prior > 0 &&
+      !due && with_prior > 0 &&
       static_cast<double>(with_prior) >= so.guided_min_prior_fraction * detection_matches_;
   if (left_uv.empty()) {
     ++frames_since_detection_;

@@ -213,6 +213,18 @@ TEST(LineTracker, PredictedLeftLinesFollowTheTracks) {
   // Frame 0 has no track (confirm_new) and frame 1 only tentative ones: from frame 2 on, every other frame.
   EXPECT_GE(predicted_frames, frames / 2 - 1);
   EXPECT_GE(found, 20 * predicted_frames);
+  // Staggered (stereo.stagger_with_left): once the left lines are predicted, the right image is detected exactly on
+  // the predicted frames and guided on the detected ones, so that every frame has one full detection.
+  int both = 0, staggered = 0, after = 0;
+  for (std::size_t k = 0; k < st.timings.size(); ++k) {
+    const LineFrameTimings& tm = st.timings[k];
+    if (k < 2) continue;  // no track yet (frame 0), tentative ones only (frame 1): both images are detected
+    ++after;
+    both += tm.left_detected && tm.right_detected;
+    staggered += tm.left_detected != tm.right_detected;
+  }
+  EXPECT_EQ(both, 0);
+  EXPECT_EQ(staggered, after);
   EXPECT_GE(precision, 0.98);
   EXPECT_GE(st.temporal_total, 0.85 * ref.temporal_total);
   EXPECT_LE(median(st.left_error_px), median(ref.left_error_px) + 0.1);

@@ -81,6 +81,8 @@ struct StereoMatchOptions {
   int guided_max_age = 3;               // frames since the line's last stereo match within which it is guided
   double guided_min_prior_fraction = 0.5;  // a frame is detected when fewer of its lines have a guided prior than
                                            // this fraction of the last detection's matches (or none has one)
+  bool stagger_with_left = true;  // with predicted left lines (temporal.detect_interval > 1): detect the right image
+                                  // on the frames whose left lines are predicted, guided on the others
   template <class V>
   void visit(V& v) {
     v("max_hamming", max_hamming, "descriptor distance, bits", 0, 256);
@@ -98,6 +100,8 @@ struct StereoMatchOptions {
     v("guided_max_age", guided_max_age, "guided pass: frames since the line's last stereo match", 1, 100);
     v("guided_min_prior_fraction", guided_min_prior_fraction,
       "lines with a guided prior / last detection's matches below which a frame is detected", 0.0, 1.0);
+    v("stagger_with_left", stagger_with_left,
+      "with predicted left lines: right detection on the predicted frames, guided on the detected ones");
   }
 };
 
