@@ -77,6 +77,37 @@ TEST(LineFactor, ImageLineMatchesDirectProjection) {
   }
 }
 
+TEST(LineFactor, ResidualAndLineJacobianMatchThePlainChain) {
+  // The factor goes W -> B -> C with the pose's terms computed once per pose. Against the plain chain, the camera's
+  // Plücker transform T_C_W = (T_W_B T_B_C)^-1 and r = sqrt_info (s.l, e.l) / |l_12| with d r / d L_W = d r / d l
+  // times the transform's top rows: the same to 1e-9 (with the camera's extrinsics, as for cam1).
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-0.2, 0.2);
+  const double sqrt_info = 460.0 / 1.5;
+  for (int trial = 0; trial < 20; ++trial) {
+    const Pose T_W_B = randomPose(rng, 3.0), T_B_C = randomPose(rng, 0.1);
+    const Pose T_W_C = T_W_B * T_B_C;
+    const Vec6 L_W = pluckerFromPoints(T_W_C * Vec3(0.5 + u(rng), -0.2, 3.0), T_W_C * Vec3(-0.4, 0.6 + u(rng), 5.0));
+    const Vec2 s(0.1 + u(rng), -0.05), e(-0.08, 0.12 + u(rng));
+    const LineReprojectionFactor f(s, e, T_B_C, sqrt_info);
+    Vec2 r;
+    Eigen::Matrix<double, 2, 6> J_line;
+    ASSERT_TRUE(f.evaluate(T_W_B, L_W, &r, nullptr, &J_line));
+    const Eigen::Matrix<double, 6, 6> P = pluckerTransformMatrix(T_W_C.inverse());
+    const Vec3 l = (P * L_W).head<3>();
+    const double ln = std::hypot(l.x(), l.y());
+    const Vec3 sh(s.x(), s.y(), 1.0), eh(e.x(), e.y(), 1.0);
+    const Vec2 r_plain = sqrt_info * Vec2(sh.dot(l), eh.dot(l)) / ln;
+    Eigen::Matrix<double, 2, 3> A;
+    const Vec3 l12(l.x(), l.y(), 0.0);
+    A.row(0) = (sh / ln - sh.dot(l) / (ln * ln * ln) * l12).transpose();
+    A.row(1) = (eh / ln - eh.dot(l) / (ln * ln * ln) * l12).transpose();
+    const Eigen::Matrix<double, 2, 6> J_plain = sqrt_info * A * P.topRows<3>();
+    EXPECT_LT((r - r_plain).norm(), 1e-9 * (1.0 + r_plain.norm())) << trial;
+    EXPECT_LT((J_line - J_plain).norm(), 1e-9 * (1.0 + J_plain.norm())) << trial;
+  }
+}
+
 TEST(LineFactor, ReprojectionErrorFromTheInverseCameraPoseIsTheSame) {
   // The outlier checks pass each frame's world -> camera pose, computed once: the same pixels as the plain form.
   std::mt19937 rng(7);
