@@ -260,7 +260,8 @@ void orientSegment(const cv::Mat& gray, const LineDetectorOptions& options, Line
   if (sum < 0.0) std::swap(segment->s, segment->e);
 }
 
-bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment, double* support) {
+bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment, double* support,
+                   bool trim) {
   if (support) *support = 0.0;
   const double len = segment->length();
   if (!(len > 1.0)) return false;
@@ -334,24 +335,57 @@ bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, Line
     }
   }
   if (count < 3) return false;
-  // Weighted total least squares in the (t, o) frame of the segment.
-  double sw = 0.0, st = 0.0, so = 0.0;
-  for (int i = 0; i < count; ++i) {
-    sw += pts[i].w;
-    st += pts[i].w * pts[i].t;
-    so += pts[i].w * pts[i].o;
-  }
-  const double mt = st / sw, mo = so / sw;
-  double ctt = 0.0, cto = 0.0, coo = 0.0;
-  for (int i = 0; i < count; ++i) {
-    const double dt = pts[i].t - mt, dof = pts[i].o - mo;
-    ctt += pts[i].w * dt * dt;
-    cto += pts[i].w * dt * dof;
-    coo += pts[i].w * dof * dof;
-  }
-  // Principal direction of the 2x2 covariance.
-  const double angle = 0.5 * std::atan2(2.0 * cto, ctt - coo);
+  // Weighted total least squares in the (t, o) frame of the segment: mean (mt, mo) and the principal direction of the
+  // 2x2 covariance.
+  double mt = 0.0, mo = 0.0, angle = 0.0;
+  const auto fit = [&]() {
+    double sw = 0.0, st = 0.0, so = 0.0;
+    for (int i = 0; i < count; ++i) {
+      sw += pts[i].w;
+      st += pts[i].w * pts[i].t;
+      so += pts[i].w * pts[i].o;
+    }
+    mt = st / sw;
+    mo = so / sw;
+    double ctt = 0.0, cto = 0.0, coo = 0.0;
+    for (int i = 0; i < count; ++i) {
+      const double dt = pts[i].t - mt, dof = pts[i].o - mo;
+      ctt += pts[i].w * dt * dt;
+      cto += pts[i].w * dt * dof;
+      coo += pts[i].w * dof * dof;
+    }
+    angle = 0.5 * std::atan2(2.0 * cto, ctt - coo);
+  };
+  fit();
   if (std::abs(angle) > 0.2) return false;  // more than ~11 degrees off: refinement found another structure
+  if (trim) {
+    // A predicted extent may reach past the edge's end onto other structure: keep the samples within kRefineTrimPx
+    // of the fit, refit on them, and end the segment at the outermost ones (half a sample step beyond).
+    const double ca = std::cos(angle), sa = std::sin(angle);
+    const double mt0 = mt, mo0 = mo;
+    int kept = 0;
+    for (int i = 0; i < count; ++i)
+      if (std::abs((pts[i].o - mo0) * ca - (pts[i].t - mt0) * sa) <= kRefineTrimPx) pts[kept++] = pts[i];
+    if (kept < 3) return false;
+    count = kept;
+    fit();
+    if (std::abs(angle) > 0.2) return false;
+    if (support) *support = static_cast<double>(count) / nsamples;
+    double t_lo = len, t_hi = 0.0;
+    for (int i = 0; i < count; ++i) {
+      t_lo = std::min(t_lo, pts[i].t);
+      t_hi = std::max(t_hi, pts[i].t);
+    }
+    const double half_step = 0.5 * len / nsamples;
+    t_lo = std::max(0.0, t_lo - half_step);
+    t_hi = std::min(len, t_hi + half_step);
+    const Vec2 centre = segment->s + mt * d + mo * n;
+    const Vec2 new_d = std::cos(angle) * d + std::sin(angle) * n;
+    const Vec2 s0 = segment->s;
+    segment->s = centre + (s0 + t_lo * d - centre).dot(new_d) * new_d;
+    segment->e = centre + (s0 + t_hi * d - centre).dot(new_d) * new_d;
+    return true;
+  }
   if (support) *support = static_cast<double>(count) / nsamples;
   // A bent edge (lens distortion bends straight scene lines): a weighted quadratic o(u) = c0 + c1 u + c2 u^2,
   // u = 2 t / len - 1, through the edge offsets. When its sagitta |c2| exceeds refine_bend_px, the endpoints are put

@@ -342,11 +342,15 @@ int LineTracker::predictLeft(const cv::Mat& left, const std::vector<const Track*
     const auto tr0 = Clock::now();
     double support = 0.0;
     const bool ok = clipToImage(cam0_, 2.0, &seg) && seg.length() >= options_.detection.min_length_px &&
-                    refineSegment(left, predicted_refine_, &seg, &support) && support >= to.predicted_min_support;
+                    refineSegment(left, predicted_refine_, &seg, &support, /*trim=*/true) &&
+                    support >= to.predicted_min_support;
     tm->detect_ms += msSince(tr0);
     if (!ok) continue;
-    // Two lines refined onto one edge: the first (the older delivered track) keeps it.
-    if (std::any_of(segs_l_.begin(), segs_l_.end(), [&](const LineSegment& o) { return liesOn(seg, o); })) continue;
+    // Two lines refined onto one edge: the first (the older delivered track) keeps it. Refined segments are oriented
+    // by their gradient, so the two sides of a thin bar (opposite directions) are two edges.
+    if (std::any_of(segs_l_.begin(), segs_l_.end(),
+                    [&](const LineSegment& o) { return o.direction().dot(seg.direction()) > 0.0 && liesOn(seg, o); }))
+      continue;
     const auto td = Clock::now();
     const LbdDescriptor desc = binarizeLbd(computeLbdFloat(left, options_.lbd, seg));
     tm->describe_ms += msSince(td);

@@ -76,6 +76,57 @@ TEST(LineDetector, RefinementIsSubPixelOnAStraightEdge) {
   EXPECT_GT(s.normal().y(), 0.0);
 }
 
+TEST(LineDetector, TrimmedRefinementEndsAtTheEdgeAndIgnoresStructurePastIt) {
+  // A predicted segment's extent is a guess. Here the edge y = 200 (dark above, bright below) ends at x = 400; past
+  // it, up to x = 560, the boundary is crenellated (1.8 px above and below the line, alternately every 8 px). A
+  // prediction along y = 200.3 from x = 150 to 560 finds those crenels within its +-3 px search: the plain
+  // refinement keeps them (and the whole extent), the trimmed one drops the samples off its first fit, refits on the
+  // edge and ends near x = 400.
+  cv::Mat img(480, 752, CV_8UC1);
+  const auto boundary = [](double x) {
+    if (x < 400.0) return 200.0;
+    return (static_cast<int>(std::floor((x - 400.0) / 8.0)) % 2 == 0) ? 198.2 : 201.8;
+  };
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      double v = 0.0;
+      for (int sy = 0; sy < 8; ++sy)
+        for (int sx = 0; sx < 8; ++sx) {
+          const double px = x - 0.5 + (sx + 0.5) / 8.0, py = y - 0.5 + (sy + 0.5) / 8.0;
+          v += (px > 100.0 && px < 600.0 && py > boundary(px)) ? 180.0 : 60.0;
+        }
+      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(v / 64.0);
+    }
+  cv::GaussianBlur(img, img, cv::Size(5, 5), 0.8);
+  LineDetectorOptions opt;
+  opt.refine_search_px = 3;
+  opt.refine_max_samples = 60;
+  const LineSegment predicted{Vec2(150.0, 200.3), Vec2(560.0, 200.3)};
+  LineSegment plain = predicted, trimmed = predicted;
+  double support_plain = 0.0, support_trimmed = 0.0;
+  ASSERT_TRUE(refineSegment(img, opt, &plain, &support_plain));
+  ASSERT_TRUE(refineSegment(img, opt, &trimmed, &support_trimmed, /*trim=*/true));
+  const auto offEdge = [](const Vec2& p) { return std::abs(p.y() - 200.0); };
+  // The trimmed segment lies on the true edge and ends where the edge ends (within a sample step, about 7 px).
+  EXPECT_LT(offEdge(trimmed.s), 0.15);
+  EXPECT_LT(offEdge(trimmed.e), 0.15);
+  EXPECT_NEAR(std::max(trimmed.s.x(), trimmed.e.x()), 400.0, 8.0);
+  EXPECT_NEAR(std::min(trimmed.s.x(), trimmed.e.x()), 150.0, 8.0);
+  EXPECT_LT(support_trimmed, support_plain - 0.2);  // only the kept samples count
+  EXPECT_GT(support_trimmed, 0.5);
+  // The plain refinement keeps the predicted extent and is pulled off the edge by the crenels.
+  EXPECT_NEAR(std::max(plain.s.x(), plain.e.x()), 560.0, 1.0);
+  EXPECT_GT(std::max(offEdge(plain.s), offEdge(plain.e)), std::max(offEdge(trimmed.s), offEdge(trimmed.e)));
+  // On a clean straight edge, trimming changes nothing but the extent's rounding.
+  LineSegment clean{Vec2(150.0, 200.3), Vec2(380.0, 200.3)}, clean_trimmed = clean;
+  ASSERT_TRUE(refineSegment(img, opt, &clean));
+  ASSERT_TRUE(refineSegment(img, opt, &clean_trimmed, nullptr, true));
+  EXPECT_LT(offEdge(clean_trimmed.s), 0.15);
+  EXPECT_LT(offEdge(clean_trimmed.e), 0.15);
+  EXPECT_LT((clean_trimmed.s - clean.s).norm(), 5.0);
+  EXPECT_LT((clean_trimmed.e - clean.e).norm(), 5.0);
+}
+
 // A thin dark bar (two opposite edges `width` px apart along y = b + a (x - 100)) on a bright background, rendered
 // by pixel-area coverage. Returns the segments found on each of the two edges (within 0.5 px, > 300 px long).
 std::array<int, 2> detectBarEdges(const LineDetectorOptions& opt, double width, double far_grey = 170.0) {

@@ -109,8 +109,12 @@ void orientSegment(const cv::Mat& gray, const LineDetectorOptions& options, Line
 /// projected onto it. Also orients the segment by the sign of the gradient (see LineSegment). Returns false when too
 /// few samples respond (the segment is then left as it was, only oriented). support (optional): the fraction of the
 /// samples along the segment that found an edge within refine_search_px (0 when the refinement failed).
+/// trim (for a segment whose extent is only predicted): the samples more than kRefineTrimPx off the first fit are
+/// dropped and the line refitted on the rest; the segment then ends at the outermost kept samples, and support counts
+/// the kept ones only. No bent-edge endpoints in that case.
 bool refineSegment(const cv::Mat& gray, const LineDetectorOptions& options, LineSegment* segment,
-                   double* support = nullptr);
+                   double* support = nullptr, bool trim = false);
+inline constexpr double kRefineTrimPx = 1.0;
 
 /// Parallel edges beside an oriented segment, on the full-resolution image: thin bars (frames, trims, the two sides of
 /// a narrow gap) have two edges 2-6 px apart that a detector on a downsampled image fuses into one. The directional
