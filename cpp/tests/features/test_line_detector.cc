@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <functional>
 
 #include "features/test_line_scene.h"
 #include "linnet/core/error.h"
@@ -13,6 +14,20 @@ namespace linnet {
 namespace {
 
 PinholeCamera testCamera() { return PinholeCamera(752, 480, 450.0, 450.0, 375.5, 239.5); }
+
+// An image whose pixels are the mean of grey(x, y) over an 8x8 grid of points in each pixel's square (pixel-area
+// coverage of sharp shapes).
+cv::Mat coverageImage(const std::function<double(double, double)>& grey) {
+  cv::Mat img(480, 752, CV_8UC1);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      double v = 0.0;
+      for (int sy = 0; sy < 8; ++sy)
+        for (int sx = 0; sx < 8; ++sx) v += grey(x - 0.5 + (sx + 0.5) / 8.0, y - 0.5 + (sy + 0.5) / 8.0);
+      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(v / 64.0);
+    }
+  return img;
+}
 
 class DetectorTest : public ::testing::TestWithParam<std::string> {};
 
@@ -43,17 +58,9 @@ TEST(LineDetector, RefinementIsSubPixelOnAStraightEdge) {
   // A dark / bright step along the line y = b + a (x - 100), rendered by exact pixel-area coverage (each pixel
   // integrates the step over its square, 8x8 supersampled), then blurred a little: the edge is exactly on the line.
   const double a = 0.3, b = 200.0;
-  cv::Mat img(480, 752, CV_8UC1);
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x) {
-      double cover = 0.0;
-      for (int sy = 0; sy < 8; ++sy)
-        for (int sx = 0; sx < 8; ++sx) {
-          const double px = x - 0.5 + (sx + 0.5) / 8.0, py = y - 0.5 + (sy + 0.5) / 8.0;
-          cover += (py > b + a * (px - 100.0) && px > 100.0 && px < 600.0) ? 1.0 : 0.0;
-        }
-      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(60.0 + 130.0 * cover / 64.0);
-    }
+  cv::Mat img = coverageImage([&](double px, double py) {
+    return (py > b + a * (px - 100.0) && px > 100.0 && px < 600.0) ? 190.0 : 60.0;
+  });
   cv::GaussianBlur(img, img, cv::Size(5, 5), 0.8);
   LineDetector det(LineDetectorOptions{});
   std::vector<LineSegment> segs;
@@ -82,21 +89,12 @@ TEST(LineDetector, TrimmedRefinementEndsAtTheEdgeAndIgnoresStructurePastIt) {
   // prediction along y = 200.3 from x = 150 to 560 finds those crenels within its +-3 px search: the plain
   // refinement keeps them (and the whole extent), the trimmed one drops the samples off its first fit, refits on the
   // edge and ends near x = 400.
-  cv::Mat img(480, 752, CV_8UC1);
   const auto boundary = [](double x) {
     if (x < 400.0) return 200.0;
     return (static_cast<int>(std::floor((x - 400.0) / 8.0)) % 2 == 0) ? 198.2 : 201.8;
   };
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x) {
-      double v = 0.0;
-      for (int sy = 0; sy < 8; ++sy)
-        for (int sx = 0; sx < 8; ++sx) {
-          const double px = x - 0.5 + (sx + 0.5) / 8.0, py = y - 0.5 + (sy + 0.5) / 8.0;
-          v += (px > 100.0 && px < 600.0 && py > boundary(px)) ? 180.0 : 60.0;
-        }
-      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(v / 64.0);
-    }
+  cv::Mat img = coverageImage(
+      [&](double px, double py) { return (px > 100.0 && px < 600.0 && py > boundary(px)) ? 180.0 : 60.0; });
   cv::GaussianBlur(img, img, cv::Size(5, 5), 0.8);
   LineDetectorOptions opt;
   opt.refine_search_px = 3;
@@ -131,19 +129,11 @@ TEST(LineDetector, TrimmedRefinementEndsAtTheEdgeAndIgnoresStructurePastIt) {
 // by pixel-area coverage. Returns the segments found on each of the two edges (within 0.5 px, > 300 px long).
 std::array<int, 2> detectBarEdges(const LineDetectorOptions& opt, double width, double far_grey = 170.0) {
   const double a = 0.2, b = 220.0;
-  cv::Mat img(480, 752, CV_8UC1);
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x) {
-      double cover = 0.0;
-      for (int sy = 0; sy < 8; ++sy)
-        for (int sx = 0; sx < 8; ++sx) {
-          const double px = x - 0.5 + (sx + 0.5) / 8.0, py = y - 0.5 + (sy + 0.5) / 8.0;
-          const double above = py - (b + a * (px - 100.0));
-          const bool inside = px > 100.0 && px < 600.0;
-          cover += inside && above > 0.0 && above < width ? 60.0 : inside && above >= width ? far_grey : 170.0;
-        }
-      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(cover / 64.0);
-    }
+  cv::Mat img = coverageImage([&](double px, double py) {
+    const double above = py - (b + a * (px - 100.0));
+    const bool inside = px > 100.0 && px < 600.0;
+    return inside && above > 0.0 && above < width ? 60.0 : inside && above >= width ? far_grey : 170.0;
+  });
   cv::GaussianBlur(img, img, cv::Size(5, 5), 0.7);
   LineDetector det(opt);
   std::vector<LineSegment> segs;
