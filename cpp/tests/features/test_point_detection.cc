@@ -1,6 +1,7 @@
 // Corner detection: quota, minimum distance, mask, spread over the grid, determinism, degenerate images.
 #include <gtest/gtest.h>
 
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "linnet/core/error.h"
@@ -51,6 +52,44 @@ TEST(PointDetection, QuotaDistanceMaskAndSpread) {
     cv::Mat mask2 = detectionMask(img.size(), existing, p.min_distance_px, p.border_px, nullptr);
     EXPECT_EQ(pts, detectCorners(img, &mask2, 120, p)) << det;  // deterministic
   }
+}
+
+TEST(PointDetection, FreeRegionSearchEqualsTheWholeImageSearch) {
+  // FAST runs only on the free part of each grid cell (its bounding box plus FAST's margin). With one grid cell and
+  // one threshold (no cascade), the plain version is a whole-image FAST, the corners on free mask pixels taken
+  // strongest first with their exclusion discs: the same corners, in the same order.
+  const cv::Mat img = texture(3);
+  cv::Mat blocked(img.size(), CV_8UC1, cv::Scalar(0));
+  cv::rectangle(blocked, cv::Rect(60, 50, 120, 90), cv::Scalar(255), cv::FILLED);  // two free regions, and a
+  cv::circle(blocked, cv::Point(450, 330), 70, cv::Scalar(255), cv::FILLED);       // third at the image border
+  cv::rectangle(blocked, cv::Rect(600, 0, 40, 480), cv::Scalar(255), cv::FILLED);
+  PointDetectorParams p;
+  p.fast_threshold = 5;  // halving it would go below 5: one round
+  p.grid_cols = p.grid_rows = 1;
+  p.min_distance_px = 2.0;  // nearly every candidate taken, those at the free regions' edges too
+  const int max_new = 100000;
+  cv::Mat mask = blocked.clone();
+  const std::vector<cv::Point2f> got = detectCorners(img, &mask, max_new, p);
+
+  std::vector<cv::KeyPoint> kps;
+  cv::FAST(img, kps, p.fast_threshold, true, cv::FastFeatureDetector::TYPE_9_16);
+  std::stable_sort(kps.begin(), kps.end(), [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
+    if (a.response != b.response) return a.response > b.response;
+    if (a.pt.y != b.pt.y) return a.pt.y < b.pt.y;
+    return a.pt.x < b.pt.x;
+  });
+  cv::Mat ref_mask = blocked.clone();
+  std::vector<cv::Point2f> want;
+  for (const cv::KeyPoint& k : kps) {
+    if (static_cast<int>(want.size()) >= max_new) break;
+    const cv::Point c(cvRound(k.pt.x), cvRound(k.pt.y));
+    if (!ref_mask.at<unsigned char>(c)) continue;
+    want.push_back(k.pt);
+    cv::circle(ref_mask, c, 2, cv::Scalar(0), cv::FILLED);
+  }
+  ASSERT_GT(want.size(), 200u);
+  ASSERT_EQ(got.size(), want.size());
+  for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i], want[i]) << i;
 }
 
 TEST(PointDetection, CrowdedTracksAreFlagged) {
