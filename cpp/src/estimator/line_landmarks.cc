@@ -56,6 +56,10 @@ void LineLandmarks::extend(LineLandmark& lm, const Vec3& a, const Vec3& b) const
 }
 
 bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const {
+  return triangulateOne(window, WindowCameras(window, T_B_C0_, T_B_C1_), lm);
+}
+
+bool LineLandmarks::triangulateOne(const Window& window, const WindowCameras& cams, LineLandmark& lm) const {
   // Candidate plane pairs: the stereo pair of each observing frame, and cam0 of the oldest observation with cam0 of
   // every later one. The widest plane angle wins.
   double best_sin = -1.0;
@@ -111,14 +115,15 @@ bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const
   if (!lm.has_extent || (lm.b - lm.a).norm() > options_.max_length_m) return reject();
   lm.triangulated = true;
   std::vector<std::array<double, 2>> errors;
-  if (sightingErrorsPx(WindowCameras(window, T_B_C0_, T_B_C1_), lm, &errors) > options_.outlier_px) return reject();
+  if (sightingErrorsPx(cams, lm, &errors) > options_.outlier_px) return reject();
   return true;
 }
 
 int LineLandmarks::triangulate(const Window& window) {
+  const WindowCameras cams(window, T_B_C0_, T_B_C1_);
   int n = 0;
   for (auto& [id, lm] : landmarks_)
-    if (!lm.triangulated && triangulateOne(window, lm)) ++n;
+    if (!lm.triangulated && triangulateOne(window, cams, lm)) ++n;
   return n;
 }
 

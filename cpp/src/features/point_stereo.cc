@@ -162,13 +162,8 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
           l.push_back(left[k]);
           r.push_back(right[k]);
         }
-      KltRoundTripParams kp;
-      kp.window = cv::Size(p.klt_window_px, p.klt_window_px);
-      kp.criteria = cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, p.klt_max_iterations,
-                                     p.klt_epsilon);
-      kp.min_eigen = p.klt_min_eigen;
-      kp.levels = kp.back_levels = group_levels;
-      kp.threshold_px = p.fb_threshold_px;
+      const KltRoundTripParams kp = kltRoundTripParams(p.klt_window_px, p.klt_max_iterations, p.klt_epsilon,
+                                                       p.klt_min_eigen, group_levels, group_levels, p.fb_threshold_px);
       const std::vector<unsigned char> kept =
           kltRoundTrip(pyr0, pyr1, l, &r, kp, [&](std::size_t j, const cv::Point2f& q) {
             const std::size_t k = ks[j];

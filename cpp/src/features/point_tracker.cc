@@ -225,15 +225,10 @@ void PointTracker::kltForwardBackward(const std::vector<cv::Point2f>& prev, cons
     from.push_back(prev[i]);
     to.push_back(start[i]);
   }
-  KltRoundTripParams p;
-  p.window = cv::Size(opt_.klt_window_px, opt_.klt_window_px);
-  p.criteria = cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, opt_.klt_max_iterations,
-                                opt_.klt_epsilon);
-  p.min_eigen = opt_.klt_min_eigen;
-  p.levels = levels;
   // The backward check: fewer levels are cheaper but weaker (VINS-Fusion uses 1).
-  p.back_levels = std::min(opt_.fb_pyramid_levels, levels);
-  p.threshold_px = opt_.fb_threshold_px;
+  const KltRoundTripParams p =
+      kltRoundTripParams(opt_.klt_window_px, opt_.klt_max_iterations, opt_.klt_epsilon, opt_.klt_min_eigen, levels,
+                         std::min(opt_.fb_pyramid_levels, levels), opt_.fb_threshold_px);
   const std::vector<unsigned char> kept =
       kltRoundTrip(pyr_prev_, pyr_cur_, from, &to, p, [&](std::size_t, const cv::Point2f& q) {
         return cam0_.inImage(toEigen(q), opt_.border_px) ? RoundTrip::kCheck : RoundTrip::kDrop;

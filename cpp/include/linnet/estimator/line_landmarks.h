@@ -104,6 +104,8 @@ class LineLandmarks {
 
   /// Triangulation of one line from its window observations (exposed for tests). False if no candidate passes.
   bool triangulateOne(const Window& window, LineLandmark& lm) const;
+  /// The same with the window's camera poses given (triangulate() computes them once for all its lines).
+  bool triangulateOne(const Window& window, const WindowCameras& cams, LineLandmark& lm) const;
 
   /// The cameras' extrinsics from now on (the estimator's online refinement of the rig); residuals built
   /// afterwards use them.

@@ -17,6 +17,20 @@ struct KltRoundTripParams {
   double threshold_px = 1.0;      // largest distance of the backward result from the start point, pixels
 };
 
+/// The parameters from a tracker's KLT options (window side, iterations and step per level, minimum eigenvalue), with
+/// the levels of both passes and the round trip's threshold.
+inline KltRoundTripParams kltRoundTripParams(int window_px, int max_iterations, double epsilon, double min_eigen,
+                                             int levels, int back_levels, double threshold_px) {
+  KltRoundTripParams p;
+  p.window = cv::Size(window_px, window_px);
+  p.criteria = cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, max_iterations, epsilon);
+  p.min_eigen = min_eigen;
+  p.levels = levels;
+  p.back_levels = back_levels;
+  p.threshold_px = threshold_px;
+  return p;
+}
+
 /// What happens to a point the forward pass tracked: dropped, kept without the backward pass, or checked by it.
 enum class RoundTrip { kDrop, kKeep, kCheck };
 
