@@ -9,6 +9,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "features/test_line_scene.h"
 #include "linnet/features/edge_drawing.h"
 
 namespace linnet {
@@ -17,14 +18,7 @@ namespace {
 // Area-sampled (4x4 per pixel) image of a predicate, then a light blur: edges sit exactly on the predicate's border.
 template <class Inside>
 cv::Mat render(Inside inside, int dark, int bright) {
-  cv::Mat img(480, 752, CV_8UC1);
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x) {
-      int n = 0;
-      for (int sy = 0; sy < 4; ++sy)
-        for (int sx = 0; sx < 4; ++sx) n += inside(x - 0.5 + (sx + 0.5) / 4.0, y - 0.5 + (sy + 0.5) / 4.0);
-      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(dark + (bright - dark) * n / 16.0);
-    }
+  cv::Mat img = testing::coverageImage([&](double x, double y) { return inside(x, y) ? bright : dark; }, 4);
   cv::GaussianBlur(img, img, cv::Size(5, 5), 0.7);
   return img;
 }

@@ -4,7 +4,6 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <functional>
 
 #include "features/test_line_scene.h"
 #include "linnet/core/error.h"
@@ -14,20 +13,6 @@ namespace linnet {
 namespace {
 
 PinholeCamera testCamera() { return PinholeCamera(752, 480, 450.0, 450.0, 375.5, 239.5); }
-
-// An image whose pixels are the mean of grey(x, y) over an 8x8 grid of points in each pixel's square (pixel-area
-// coverage of sharp shapes).
-cv::Mat coverageImage(const std::function<double(double, double)>& grey) {
-  cv::Mat img(480, 752, CV_8UC1);
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x) {
-      double v = 0.0;
-      for (int sy = 0; sy < 8; ++sy)
-        for (int sx = 0; sx < 8; ++sx) v += grey(x - 0.5 + (sx + 0.5) / 8.0, y - 0.5 + (sy + 0.5) / 8.0);
-      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(v / 64.0);
-    }
-  return img;
-}
 
 class DetectorTest : public ::testing::TestWithParam<std::string> {};
 
@@ -58,7 +43,7 @@ TEST(LineDetector, RefinementIsSubPixelOnAStraightEdge) {
   // A dark / bright step along the line y = b + a (x - 100), rendered by exact pixel-area coverage (each pixel
   // integrates the step over its square, 8x8 supersampled), then blurred a little: the edge is exactly on the line.
   const double a = 0.3, b = 200.0;
-  cv::Mat img = coverageImage([&](double px, double py) {
+  cv::Mat img = testing::coverageImage([&](double px, double py) {
     return (py > b + a * (px - 100.0) && px > 100.0 && px < 600.0) ? 190.0 : 60.0;
   });
   cv::GaussianBlur(img, img, cv::Size(5, 5), 0.8);
@@ -93,7 +78,7 @@ TEST(LineDetector, TrimmedRefinementEndsAtTheEdgeAndIgnoresStructurePastIt) {
     if (x < 400.0) return 200.0;
     return (static_cast<int>(std::floor((x - 400.0) / 8.0)) % 2 == 0) ? 198.2 : 201.8;
   };
-  cv::Mat img = coverageImage(
+  cv::Mat img = testing::coverageImage(
       [&](double px, double py) { return (px > 100.0 && px < 600.0 && py > boundary(px)) ? 180.0 : 60.0; });
   cv::GaussianBlur(img, img, cv::Size(5, 5), 0.8);
   LineDetectorOptions opt;
@@ -129,7 +114,7 @@ TEST(LineDetector, TrimmedRefinementEndsAtTheEdgeAndIgnoresStructurePastIt) {
 // by pixel-area coverage. Returns the segments found on each of the two edges (within 0.5 px, > 300 px long).
 std::array<int, 2> detectBarEdges(const LineDetectorOptions& opt, double width, double far_grey = 170.0) {
   const double a = 0.2, b = 220.0;
-  cv::Mat img = coverageImage([&](double px, double py) {
+  cv::Mat img = testing::coverageImage([&](double px, double py) {
     const double above = py - (b + a * (px - 100.0));
     const bool inside = px > 100.0 && px < 600.0;
     return inside && above > 0.0 && above < width ? 60.0 : inside && above >= width ? far_grey : 170.0;

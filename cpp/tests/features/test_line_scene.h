@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <functional>
 #include <random>
 #include <vector>
 
@@ -14,6 +16,21 @@
 #include "linnet/features/line_types.h"
 
 namespace linnet::testing {
+
+/// An image (752 x 480) whose pixels are the mean of grey(x, y) over a samples x samples grid of points in each
+/// pixel's square: pixel-area coverage of sharp shapes.
+inline cv::Mat coverageImage(const std::function<double(double, double)>& grey, int samples = 8) {
+  cv::Mat img(480, 752, CV_8UC1);
+  const double n = static_cast<double>(samples);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      double v = 0.0;
+      for (int sy = 0; sy < samples; ++sy)
+        for (int sx = 0; sx < samples; ++sx) v += grey(x - 0.5 + (sx + 0.5) / n, y - 0.5 + (sy + 0.5) / n);
+      img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(v / (n * n));
+    }
+  return img;
+}
 
 struct SceneQuad {
   Vec3 corners[4];  // world frame, in order around the quad
