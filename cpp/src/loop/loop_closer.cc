@@ -126,7 +126,10 @@ bool LoopCloser::tryLoop(std::size_t k) {
   mo.ransac_px = options_.ransac_px;
   mo.focal_px = cam0_.fx();
   mo.two_way = options_.two_way_pnp;
+  mo.guided_radius_px = options_.guided_radius_px;
   for (const auto& [distance, j] : candidates) {
+    // The corrected odometry's relative pose of the two cameras, for guided matching.
+    mo.prior_T_Cold_Cnew = T_B_C0_.inverse() * graph_.pose(j).inverse() * P_new * T_B_C0_;
     const PlaceMatch m = matchPlaces(keyframes_[j].place, now.place, mo);
     if (!m.ok) continue;
     const Pose T_Bj_Bk = T_B_C0_ * m.T_Cold_Cnew * T_B_C0_.inverse();

@@ -145,6 +145,40 @@ void matchOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatc
   }
 }
 
+// Guided matches of a's 3D corners to b's corners: each 3D corner, moved into b by the prior T_Cb_Ca, takes the
+// closest descriptor among b's corners within the radius of its projection (max_hamming; a second candidate within
+// the radius must be clearly farther, match_ratio; one 3D point per corner).
+void matchGuided(const PlaceFeatures& a, const PlaceFeatures& b, const Pose& T_Cb_Ca, const PlaceMatchOptions& options,
+                 std::vector<cv::Point3d>* object, std::vector<cv::Point2d>* image) {
+  const double radius = options.guided_radius_px / options.focal_px;
+  const double radius_sq = radius * radius;
+  std::vector<int> used(b.uv.size(), 0);
+  for (int i = 0; i < static_cast<int>(a.p_C.size()); ++i) {
+    const Vec3 p = T_Cb_Ca * a.p_C[static_cast<std::size_t>(i)];
+    if (!(p.z() > 0.1)) continue;
+    const Vec2 uv = p.head<2>() / p.z();
+    int best = -1;
+    double d1 = std::numeric_limits<double>::infinity(), d2 = d1;
+    for (int k = 0; k < static_cast<int>(b.uv.size()); ++k) {
+      if ((b.uv[static_cast<std::size_t>(k)] - uv).squaredNorm() > radius_sq) continue;
+      const double d = cv::norm(a.descriptors_3d.row(i), b.descriptors_2d.row(k), cv::NORM_HAMMING);
+      if (d < d1) {
+        d2 = d1;
+        d1 = d;
+        best = k;
+      } else if (d < d2) {
+        d2 = d;
+      }
+    }
+    if (best < 0 || d1 > options.max_hamming || d1 > options.match_ratio * d2) continue;
+    if (used[static_cast<std::size_t>(best)]++) continue;
+    const Vec3& X = a.p_C[static_cast<std::size_t>(i)];
+    const Vec2& m = b.uv[static_cast<std::size_t>(best)];
+    object->emplace_back(X.x(), X.y(), X.z());
+    image->emplace_back(m.x(), m.y());
+  }
+}
+
 struct OneWay {
   PlaceMatch match;                 // T_Cold_Cnew holds T_Cb_Ca here
   std::vector<cv::Point3d> object;  // the PnP's inliers: a's points
@@ -207,13 +241,18 @@ bool refineTwoWay(const std::vector<cv::Point3d>& obj_a, const std::vector<cv::P
 }
 
 // 3D points of `a` (its camera frame) matched to 2D corners of `b`; on success T_Cb_Ca.
-OneWay solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options) {
+// With a prior T_Cb_Ca the pairs come from guided matching instead of descriptors alone.
+OneWay solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options,
+                   const std::optional<Pose>& prior_T_Cb_Ca = std::nullopt) {
   OneWay result;
   PlaceMatch& out = result.match;
   if (static_cast<int>(a.p_C.size()) < options.min_inliers || b.descriptors_2d.rows < 2) return result;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
-  matchOneWay(a, b, options, &object, &image);
+  if (prior_T_Cb_Ca)
+    matchGuided(a, b, *prior_T_Cb_Ca, options, &object, &image);
+  else
+    matchOneWay(a, b, options, &object, &image);
   out.matches = static_cast<int>(object.size());
   if (out.matches < options.min_inliers) return result;
   cv::Mat rvec, tvec;
@@ -278,29 +317,39 @@ void refineOnBothKeyframes(const PlaceFeatures& a, const PlaceFeatures& b, const
 }  // namespace
 
 PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options) {
-  OneWay forward = solveOneWay(new_kf, old_kf, options);  // T_Cold_Cnew
-  if (forward.match.ok) {
-    if (options.two_way) refineOnBothKeyframes(new_kf, old_kf, options, &forward);
-    return forward.match;
-  }
-  OneWay backward = solveOneWay(old_kf, new_kf, options);  // T_Cnew_Cold
-  if (backward.match.ok && options.two_way) refineOnBothKeyframes(old_kf, new_kf, options, &backward);
-  const PlaceMatch& m = forward.match;
-  PlaceMatch r = backward.match;
-  if (!r.ok) {
-    r.matches = std::max(r.matches, m.matches);
-    r.inliers = std::max(r.inliers, m.inliers);
+  PlaceMatch best;
+  const bool guided = options.prior_T_Cold_Cnew.has_value() && options.guided_radius_px > 0.0;
+  for (int pass = 0; pass < (guided ? 2 : 1); ++pass) {
+    std::optional<Pose> forward_prior, backward_prior;
+    if (pass == 1) {
+      forward_prior = *options.prior_T_Cold_Cnew;
+      backward_prior = options.prior_T_Cold_Cnew->inverse();
+    }
+    OneWay forward = solveOneWay(new_kf, old_kf, options, forward_prior);  // T_Cold_Cnew
+    if (forward.match.ok) {
+      if (options.two_way) refineOnBothKeyframes(new_kf, old_kf, options, &forward);
+      return forward.match;
+    }
+    OneWay backward = solveOneWay(old_kf, new_kf, options, backward_prior);  // T_Cnew_Cold
+    if (backward.match.ok && options.two_way) refineOnBothKeyframes(old_kf, new_kf, options, &backward);
+    const PlaceMatch& m = forward.match;
+    PlaceMatch r = backward.match;
+    if (!r.ok) {
+      best.matches = std::max({best.matches, r.matches, m.matches});
+      best.inliers = std::max({best.inliers, r.inliers, m.inliers});
+      continue;
+    }
+    // The inverse: R' = R^T, t' = -R^T t, so dtheta' = -R^T dtheta and dt' = -R^T [t]x dtheta - R^T dt.
+    const Mat3 Rt = r.T_Cold_Cnew.R().transpose();
+    Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
+    J.block<3, 3>(0, 0) = -Rt;
+    J.block<3, 3>(3, 0) = -Rt * skew(r.T_Cold_Cnew.p);
+    J.block<3, 3>(3, 3) = -Rt;
+    r.covariance = J * r.covariance * J.transpose();
+    r.T_Cold_Cnew = r.T_Cold_Cnew.inverse();
     return r;
   }
-  // The inverse: R' = R^T, t' = -R^T t, so dtheta' = -R^T dtheta and dt' = -R^T [t]x dtheta - R^T dt.
-  const Mat3 Rt = r.T_Cold_Cnew.R().transpose();
-  Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
-  J.block<3, 3>(0, 0) = -Rt;
-  J.block<3, 3>(3, 0) = -Rt * skew(r.T_Cold_Cnew.p);
-  J.block<3, 3>(3, 3) = -Rt;
-  r.covariance = J * r.covariance * J.transpose();
-  r.T_Cold_Cnew = r.T_Cold_Cnew.inverse();
-  return r;
+  return best;
 }
 
 }  // namespace linnet

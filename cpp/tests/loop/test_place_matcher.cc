@@ -190,6 +190,45 @@ TEST(PlaceMatcher, RejectsTooFewMatches) {
   EXPECT_LT(m.matches, 5);
 }
 
+// Each true corner of the old keyframe gets a distractor elsewhere in the image with a closer descriptor (the true
+// one differs by one bit), so that matching by descriptor alone picks the distractors.
+void addDistractors(int n, PlaceFeatures* old_kf) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> angle(0.0, 2.0 * M_PI), radius(0.12, 0.3);
+  for (int i = 0; i < n; ++i) {
+    const cv::Mat exact = old_kf->descriptors_2d.row(i).clone();
+    old_kf->descriptors_2d.at<unsigned char>(i, 0) ^= 1;
+    const double a = angle(rng), r = radius(rng);
+    old_kf->uv.push_back(old_kf->uv[static_cast<std::size_t>(i)] + r * Vec2(std::cos(a), std::sin(a)));
+    old_kf->descriptors_2d.push_back(exact);
+  }
+}
+
+TEST(PlaceMatcher, GuidedMatchingAroundAPriorFindsTheLoopDescriptorsMiss) {
+  const Pose T_Cold_Cnew(expSO3(Vec3(0.01, -0.2, 0.02)), Vec3(0.3, -0.05, 0.2));
+  PlaceFeatures old_kf, new_kf;
+  syntheticPair(T_Cold_Cnew, 40, 0, &old_kf, &new_kf);
+  addDistractors(40, &old_kf);
+  PlaceMatchOptions o;
+  o.min_inliers = 20;
+  EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok) << "descriptors alone must pick the distractors";
+  // A prior 2 cm and 0.5 deg off: the true corners are within the radius, the distractors (55-140 px away) not.
+  o.prior_T_Cold_Cnew = Pose(expSO3(Vec3(0.0, 0.5 * M_PI / 180.0, 0.0)), Vec3(0.02, 0.0, 0.0)) * T_Cold_Cnew;
+  o.guided_radius_px = 25.0;
+  const PlaceMatch m = matchPlaces(old_kf, new_kf, o);
+  ASSERT_TRUE(m.ok);
+  EXPECT_EQ(m.inliers, 40);
+  EXPECT_LT((m.T_Cold_Cnew.p - T_Cold_Cnew.p).norm(), 1e-6);
+  EXPECT_LT(logSO3(m.T_Cold_Cnew.q.conjugate() * T_Cold_Cnew.q).norm(), 1e-6);
+  // Off: the same as without a prior.
+  o.guided_radius_px = 0.0;
+  EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
+  // A prior far off (0.5 m) finds no loop.
+  o.guided_radius_px = 25.0;
+  o.prior_T_Cold_Cnew = Pose(Quat::Identity(), Vec3(0.5, 0.0, 0.0)) * T_Cold_Cnew;
+  EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
+}
+
 TEST(PlaceMatcher, DescribesTrackedCornersWithStereoDepthAndMoreCorners) {
   const test::WallScene scene;
   const Pose T_W_C = scene.cameraAt(Vec3(0.3, 0.0, 1.2), 0.1);

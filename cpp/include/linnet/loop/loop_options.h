@@ -27,6 +27,9 @@ struct LoopOptions {
                                        // lowtex 0.0323 -> 0.0260 m; textured replays close about twice as many loops
   double ransac_px = 2.0;              // PnP RANSAC reprojection threshold, pixels
   bool two_way_pnp = true;             // refine the PnP on both keyframes' 3D corners (each seen in the other)
+  double guided_radius_px = 25.0;      // when descriptor matching finds no loop: match each 3D corner to the corners
+                                       // within this radius of where the corrected odometry projects it, pixels
+                                       // (0: off)
   double max_yaw_change_deg = 30.0;    // the loop's yaw correction must be smaller, deg
   // Pose graph (pose_graph.h): x, y, z and yaw per keyframe; roll and pitch stay the odometry's (IMU-observable).
   int sequential_edges = 4;            // odometry edges from each keyframe to the previous ones
@@ -66,6 +69,9 @@ struct LoopOptions {
     v("min_inliers", min_inliers, "PnP RANSAC inliers for a loop", 6, 100000);
     v("ransac_px", ransac_px, "PnP RANSAC reprojection threshold, pixels", 0.1, 100.0);
     v("two_way_pnp", two_way_pnp, "refine the PnP on both keyframes' 3D corners, each seen in the other");
+    v("guided_radius_px", guided_radius_px,
+      "guided matching around the corrected odometry's projection when descriptors find no loop, pixels (0: off)",
+      0.0, 1000.0);
     v("max_yaw_change_deg", max_yaw_change_deg, "largest yaw correction of one loop, deg", 0.1, 180.0);
     v("sequential_edges", sequential_edges, "odometry edges from each keyframe to the previous ones", 1, 100);
     v("odometry_sigma_m", odometry_sigma_m, "odometry edge sigma, m", 1e-6, 10.0);

@@ -6,6 +6,7 @@
 // solving PnP in RANSAC (as VINS-Mono does with its extra BRIEF corners).
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -49,6 +50,11 @@ struct PlaceMatchOptions {
   // Refine the one-way PnP on both keyframes' 3D corners: the first's seen in the second and the second's in the
   // first, jointly, so that neither keyframe's landmark errors alone set the relative pose.
   bool two_way = false;
+  // Guided matching when descriptor matching alone fails: with a predicted relative pose (prior_T_Cold_Cnew), each
+  // 3D corner is matched to the corners within guided_radius_px of its projection (0: off). Low-texture keyframes
+  // keep too few 3D corners for the ratio test over the whole image to find enough pairs.
+  std::optional<Pose> prior_T_Cold_Cnew;
+  double guided_radius_px = 0.0;
 };
 
 struct PlaceMatch {
@@ -68,8 +74,8 @@ struct PlaceMatch {
 void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, PlaceFeatures* f);
 
 /// Matches the new keyframe's 3D corners to the old keyframe's 2D corners and solves the old camera's pose from
-/// those pairs (EPnP in RANSAC, then iterative refinement on the inliers); if that fails, the other way round.
-/// Deterministic.
+/// those pairs (EPnP in RANSAC, then iterative refinement on the inliers); if that fails, the other way round; if
+/// that fails too and a prior pose is given, both again with the pairs of guided matching. Deterministic.
 PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options);
 
 }  // namespace linnet
