@@ -48,6 +48,7 @@ class EstimatorCore {
   EstimatorOutput addFrame(const FrameObservations& obs);
   std::vector<Vec3> landmarkPositions() const { return points_.positions(window_); }
   std::vector<MapLine> mapLines() const { return lines_.mapLines(&window_); }
+  std::vector<MapLine> windowLines() const { return lines_.windowLines(); }
   std::vector<std::pair<Timestamp, Pose>> windowPoses() const {
     std::vector<std::pair<Timestamp, Pose>> out;
     for (int i = 0; i < window_.size(); ++i) out.emplace_back(window_[i].t, window_[i].T_W_B());

@@ -408,6 +408,14 @@ int LineLandmarks::countUsed() const {
   return n;
 }
 
+std::vector<MapLine> LineLandmarks::windowLines() const {
+  std::vector<MapLine> out;
+  for (const auto& [id, lm] : landmarks_)
+    if (lm.triangulated && lm.has_extent)
+      out.push_back(MapLine{id, lm.a, lm.b, lm.observations, lm.t_last, std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad});
+  return out;
+}
+
 std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
   std::map<std::int64_t, MapLine> all = map_;
   for (const auto& [id, lm] : landmarks_) {

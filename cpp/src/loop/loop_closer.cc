@@ -40,12 +40,15 @@ bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left
 }
 
 void LoopCloser::queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left,
-                               const std::vector<PointObservation>& points) {
-  queued_.push_back(Queued{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_)), {}});
+                               const std::vector<PointObservation>& points, const std::vector<LineObservation>& lines) {
+  Queued q{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_)), {}, {}};
+  if (options_.use_lines) describePlaceLines(left, lines, LbdOptions{}, &q.place);
+  queued_.push_back(std::move(q));
 }
 
 int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& window,
-                             const std::vector<std::pair<std::int64_t, Vec3>>& landmarks) {
+                             const std::vector<std::pair<std::int64_t, Vec3>>& landmarks,
+                             const std::vector<MapLine>& line_landmarks) {
   for (Queued& q : queued_) {
     const auto it = std::find_if(window.begin(), window.end(), [&](const auto& w) { return w.first == q.t; });
     if (it == window.end()) continue;
@@ -55,6 +58,12 @@ int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& wind
       const auto lm = std::lower_bound(landmarks.begin(), landmarks.end(), q.place.tracked_ids[i],
                                        [](const std::pair<std::int64_t, Vec3>& a, std::int64_t id) { return a.first < id; });
       if (lm != landmarks.end() && lm->first == q.place.tracked_ids[i]) q.p_W[i] = lm->second;
+    }
+    q.lines_W.clear();
+    for (std::int64_t id : q.place.line_ids) {
+      const auto l = std::lower_bound(line_landmarks.begin(), line_landmarks.end(), id,
+                                      [](const MapLine& a, std::int64_t b) { return a.id < b; });
+      if (l != line_landmarks.end() && l->id == id) q.lines_W.push_back(*l);
     }
   }
   // Queued keyframes older than the window's oldest frame have left it: their estimates are final.
@@ -69,6 +78,7 @@ int LoopCloser::insertQueuedBefore(Timestamp limit) {
     Queued q = std::move(queued_.front());
     queued_.pop_front();
     setPlaceDepths(q.p_W, q.T_W_B * T_B_C0_, &q.place);
+    setPlaceLines(q.lines_W, q.T_W_B * T_B_C0_, &q.place);
     loops += insert(q.t, q.T_W_B, std::move(q.place)) ? 1 : 0;
   }
   return loops;
@@ -127,6 +137,9 @@ bool LoopCloser::tryLoop(std::size_t k) {
   mo.focal_px = cam0_.fx();
   mo.two_way = options_.two_way_pnp;
   mo.guided_radius_px = options_.guided_radius_px;
+  mo.use_lines = options_.use_lines;
+  mo.line_max_hamming = options_.line_max_hamming;
+  mo.line_max_angle_deg = options_.line_max_angle_deg;
   for (const auto& [distance, j] : candidates) {
     // The corrected odometry's relative pose of the two cameras, for guided matching.
     mo.prior_T_Cold_Cnew = T_B_C0_.inverse() * graph_.pose(j).inverse() * P_new * T_B_C0_;

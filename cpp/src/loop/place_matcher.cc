@@ -11,6 +11,7 @@
 #include "linnet/camera/camera_model.h"
 #include "linnet/geometry/projection.h"
 #include "linnet/geometry/triangulation.h"
+#include "place_match_detail.h"
 
 namespace linnet {
 
@@ -90,10 +91,8 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
   }
 }
 
-namespace {
+namespace place_detail {
 
-// sigma^2 H^-1 for the information H = J^T J of n normalised image residuals whose squares sum to sum_sq, sigma^2
-// their variance (2 n - 6 degrees of freedom). False when H is singular.
 bool covarianceFromInformation(const Eigen::Matrix<double, 6, 6>& H, double sum_sq, std::size_t n,
                                Eigen::Matrix<double, 6, 6>* covariance) {
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
@@ -102,6 +101,59 @@ bool covarianceFromInformation(const Eigen::Matrix<double, 6, 6>& H, double sum_
   *covariance = variance * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
   return covariance->allFinite();
 }
+
+// Guided matches of a's 3D corners to b's corners: each 3D corner, moved into b by the prior T_Cb_Ca, takes the
+// closest descriptor among b's corners within the radius of its projection (max_hamming; a second candidate within
+// the radius must be clearly farther, match_ratio; one 3D point per corner).
+void matchGuided(const PlaceFeatures& a, const PlaceFeatures& b, const Pose& T_Cb_Ca, const PlaceMatchOptions& options,
+                 std::vector<cv::Point3d>* object, std::vector<cv::Point2d>* image) {
+  const double radius = options.guided_radius_px / options.focal_px;
+  const double radius_sq = radius * radius;
+  std::vector<int> used(b.uv.size(), 0);
+  for (int i = 0; i < static_cast<int>(a.p_C.size()); ++i) {
+    const Vec3 p = T_Cb_Ca * a.p_C[static_cast<std::size_t>(i)];
+    if (!(p.z() > 0.1)) continue;
+    const Vec2 uv = p.head<2>() / p.z();
+    int best = -1;
+    double d1 = std::numeric_limits<double>::infinity(), d2 = d1;
+    for (int k = 0; k < static_cast<int>(b.uv.size()); ++k) {
+      if ((b.uv[static_cast<std::size_t>(k)] - uv).squaredNorm() > radius_sq) continue;
+      const double d = cv::norm(a.descriptors_3d.row(i), b.descriptors_2d.row(k), cv::NORM_HAMMING);
+      if (d < d1) {
+        d2 = d1;
+        d1 = d;
+        best = k;
+      } else if (d < d2) {
+        d2 = d;
+      }
+    }
+    if (best < 0 || d1 > options.max_hamming || d1 > options.match_ratio * d2) continue;
+    if (used[static_cast<std::size_t>(best)]++) continue;
+    const Vec3& X = a.p_C[static_cast<std::size_t>(i)];
+    const Vec2& m = b.uv[static_cast<std::size_t>(best)];
+    object->emplace_back(X.x(), X.y(), X.z());
+    image->emplace_back(m.x(), m.y());
+  }
+}
+
+PlaceMatch inverted(PlaceMatch r) {
+  // The inverse: R' = R^T, t' = -R^T t, so dtheta' = -R^T dtheta and dt' = -R^T [t]x dtheta - R^T dt.
+  const Mat3 Rt = r.T_Cold_Cnew.R().transpose();
+  Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
+  J.block<3, 3>(0, 0) = -Rt;
+  J.block<3, 3>(3, 0) = -Rt * skew(r.T_Cold_Cnew.p);
+  J.block<3, 3>(3, 3) = -Rt;
+  r.covariance = J * r.covariance * J.transpose();
+  r.T_Cold_Cnew = r.T_Cold_Cnew.inverse();
+  return r;
+}
+
+}  // namespace place_detail
+
+using place_detail::covarianceFromInformation;
+using place_detail::matchGuided;
+
+namespace {
 
 // Covariance of the pose (R, t) mapping `object` onto the normalised `image` points (x_b = R x_a + t), for the
 // perturbation R <- exp(dtheta) R, t <- t + dt: sigma^2 (J^T J)^-1 with sigma^2 the residuals' variance (2 n - 6
@@ -142,40 +194,6 @@ void matchOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatc
     const Vec2& uv = b.uv[static_cast<std::size_t>(m[0].trainIdx)];
     object->emplace_back(X.x(), X.y(), X.z());
     image->emplace_back(uv.x(), uv.y());
-  }
-}
-
-// Guided matches of a's 3D corners to b's corners: each 3D corner, moved into b by the prior T_Cb_Ca, takes the
-// closest descriptor among b's corners within the radius of its projection (max_hamming; a second candidate within
-// the radius must be clearly farther, match_ratio; one 3D point per corner).
-void matchGuided(const PlaceFeatures& a, const PlaceFeatures& b, const Pose& T_Cb_Ca, const PlaceMatchOptions& options,
-                 std::vector<cv::Point3d>* object, std::vector<cv::Point2d>* image) {
-  const double radius = options.guided_radius_px / options.focal_px;
-  const double radius_sq = radius * radius;
-  std::vector<int> used(b.uv.size(), 0);
-  for (int i = 0; i < static_cast<int>(a.p_C.size()); ++i) {
-    const Vec3 p = T_Cb_Ca * a.p_C[static_cast<std::size_t>(i)];
-    if (!(p.z() > 0.1)) continue;
-    const Vec2 uv = p.head<2>() / p.z();
-    int best = -1;
-    double d1 = std::numeric_limits<double>::infinity(), d2 = d1;
-    for (int k = 0; k < static_cast<int>(b.uv.size()); ++k) {
-      if ((b.uv[static_cast<std::size_t>(k)] - uv).squaredNorm() > radius_sq) continue;
-      const double d = cv::norm(a.descriptors_3d.row(i), b.descriptors_2d.row(k), cv::NORM_HAMMING);
-      if (d < d1) {
-        d2 = d1;
-        d1 = d;
-        best = k;
-      } else if (d < d2) {
-        d2 = d;
-      }
-    }
-    if (best < 0 || d1 > options.max_hamming || d1 > options.match_ratio * d2) continue;
-    if (used[static_cast<std::size_t>(best)]++) continue;
-    const Vec3& X = a.p_C[static_cast<std::size_t>(i)];
-    const Vec2& m = b.uv[static_cast<std::size_t>(best)];
-    object->emplace_back(X.x(), X.y(), X.z());
-    image->emplace_back(m.x(), m.y());
   }
 }
 
@@ -339,15 +357,13 @@ PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf,
       best.inliers = std::max({best.inliers, r.inliers, m.inliers});
       continue;
     }
-    // The inverse: R' = R^T, t' = -R^T t, so dtheta' = -R^T dtheta and dt' = -R^T [t]x dtheta - R^T dt.
-    const Mat3 Rt = r.T_Cold_Cnew.R().transpose();
-    Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
-    J.block<3, 3>(0, 0) = -Rt;
-    J.block<3, 3>(3, 0) = -Rt * skew(r.T_Cold_Cnew.p);
-    J.block<3, 3>(3, 3) = -Rt;
-    r.covariance = J * r.covariance * J.transpose();
-    r.T_Cold_Cnew = r.T_Cold_Cnew.inverse();
-    return r;
+    return place_detail::inverted(r);
+  }
+  if (guided && options.use_lines) {
+    const PlaceMatch lines = matchPlacesWithLines(old_kf, new_kf, options);
+    if (lines.ok) return lines;
+    best.matches = std::max(best.matches, lines.matches);
+    best.inliers = std::max(best.inliers, lines.inliers);
   }
   return best;
 }

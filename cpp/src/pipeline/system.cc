@@ -216,9 +216,10 @@ struct System::Impl {
         if (loop && r.estimate.has_pose) {
           const double cl = threadCpuMs();
           if (r.estimate.keyframe && r.estimate.status == TrackingStatus::kTracking)
-            loop->queueKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points);
+            loop->queueKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points, item->obs.lines);
           loop->setExtrinsics(r.estimate.T_B_R * config.cam0.T_B_C);
-          if (loop->hasQueued()) loop->updateWindow(estimator.windowPoses(), estimator.pointLandmarks());
+          if (loop->hasQueued())
+            loop->updateWindow(estimator.windowPoses(), estimator.pointLandmarks(), estimator.windowLines());
           const Pose C = loop->latestCorrection();
           r.T_W_B = C * r.estimate.T_W_B;
           r.v_W = C.q * r.estimate.v_W;

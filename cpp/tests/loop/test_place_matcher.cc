@@ -1,3 +1,4 @@
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -225,6 +226,59 @@ TEST(PlaceMatcher, GuidedMatchingAroundAPriorFindsTheLoopDescriptorsMiss) {
   EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
   // A prior far off (0.5 m) finds no loop.
   o.guided_radius_px = 25.0;
+  o.prior_T_Cold_Cnew = Pose(Quat::Identity(), Vec3(0.5, 0.0, 0.0)) * T_Cold_Cnew;
+  EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
+}
+
+// `n` 3D segments in the new keyframe's cam0 (with random LBD descriptors) and the old keyframe's image lines of the
+// same segments, each seen over a different part of the segment.
+void syntheticLines(const Pose& T_Cold_Cnew, int n, PlaceFeatures* old_kf, PlaceFeatures* new_kf) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), depth(2.0, 6.0), length(0.5, 1.5);
+  for (int i = 0; i < n; ++i) {
+    const double z = depth(rng);
+    const Vec3 P0(u(rng) * 0.5 * z, u(rng) * 0.3 * z, z);
+    const Vec3 P1 = P0 + length(rng) * Vec3(u(rng), u(rng), 0.3 * u(rng)).normalized();
+    const LbdDescriptor desc = {rng(), rng(), rng(), rng()};
+    new_kf->line_ids.push_back(i);
+    new_kf->line_p_C.push_back({P0, P1});
+    new_kf->line_desc.push_back(desc);
+    new_kf->line_uv.push_back({Vec2::Zero(), Vec2::Zero()});
+    const Vec3 A = T_Cold_Cnew * (P0 + 0.1 * (P1 - P0)), B = T_Cold_Cnew * (P0 + 0.8 * (P1 - P0));
+    old_kf->line_ids.push_back(100 + i);
+    old_kf->line_uv.push_back({A.head<2>() / A.z(), B.head<2>() / B.z()});
+    old_kf->line_desc.push_back(desc);
+    const Vec3 none = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    old_kf->line_p_C.push_back({none, none});
+  }
+}
+
+TEST(PlaceMatcher, LinesCloseALoopThatTooFewCornersCannot) {
+  const Pose T_Cold_Cnew(expSO3(Vec3(0.01, -0.2, 0.02)), Vec3(0.3, -0.05, 0.2));
+  PlaceFeatures old_kf, new_kf;
+  syntheticPair(T_Cold_Cnew, 8, 0, &old_kf, &new_kf);
+  syntheticLines(T_Cold_Cnew, 30, &old_kf, &new_kf);
+  PlaceMatchOptions o;
+  o.min_inliers = 15;
+  o.guided_radius_px = 25.0;
+  o.prior_T_Cold_Cnew = Pose(expSO3(Vec3(0.0, 0.5 * M_PI / 180.0, 0.0)), Vec3(0.02, 0.0, 0.0)) * T_Cold_Cnew;
+  EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok) << "8 corners are too few";
+  o.use_lines = true;
+  const PlaceMatch m = matchPlaces(old_kf, new_kf, o);
+  ASSERT_TRUE(m.ok);
+  EXPECT_EQ(m.inliers, 38);
+  EXPECT_LT((m.T_Cold_Cnew.p - T_Cold_Cnew.p).norm(), 1e-6);
+  EXPECT_LT(logSO3(m.T_Cold_Cnew.q.conjugate() * T_Cold_Cnew.q).norm(), 1e-6);
+  EXPECT_TRUE(m.covariance.allFinite());
+  // The other way round (only the old keyframe has 3D features): the same pose.
+  const PlaceMatch back = matchPlacesWithLines(new_kf, old_kf, [&] {
+    PlaceMatchOptions ob = o;
+    ob.prior_T_Cold_Cnew = o.prior_T_Cold_Cnew->inverse();
+    return ob;
+  }());
+  ASSERT_TRUE(back.ok);
+  EXPECT_LT((back.T_Cold_Cnew.inverse().p - T_Cold_Cnew.p).norm(), 1e-6);
+  // A prior far off (0.5 m) finds no loop.
   o.prior_T_Cold_Cnew = Pose(Quat::Identity(), Vec3(0.5, 0.0, 0.0)) * T_Cold_Cnew;
   EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
 }

@@ -65,6 +65,8 @@ class Estimator {
   std::vector<Vec3> landmarkPositions() const;
   /// The line map: lines that left the window and the window's triangulated lines, finite segments in W.
   std::vector<MapLine> mapLines() const;
+  /// The window's triangulated lines now (current estimate, finite segments in W), by increasing id.
+  std::vector<MapLine> windowLines() const;
   /// The window's frames now (oldest first): time stamp and T_W_B.
   std::vector<std::pair<Timestamp, Pose>> windowPoses() const;
   /// The window's triangulated point landmarks now: track id and position in W, by increasing id.

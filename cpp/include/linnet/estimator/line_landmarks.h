@@ -99,6 +99,8 @@ class LineLandmarks {
   /// its lines are refined as the lines that left it are (options.map_refine): on their sightings that left the
   /// window and those still in it, at the window's poses.
   std::vector<MapLine> mapLines(const Window* window = nullptr) const;
+  /// The window's triangulated lines with an extent, at their current estimate (by increasing id).
+  std::vector<MapLine> windowLines() const;
   const std::map<std::int64_t, LineLandmark>& all() const { return landmarks_; }
   const LineRejectionStats& lastRejections() const { return rejections_; }
 

@@ -50,11 +50,15 @@ class LoopCloser {
   /// The way a running odometry feeds it: a new keyframe is described now (the image is at hand) but inserted only
   /// once it has left the odometry's window, at its final pose and with its corners at the window's final landmark
   /// positions (multi-view, better than one stereo pair), as VINS-Mono does with its window's old keyframes.
-  void queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left, const std::vector<PointObservation>& points);
-  /// The odometry's window after a frame (oldest first) and its triangulated landmarks (sorted by id): updates the
-  /// queued keyframes still in it, and inserts those that have left it. Returns the loops closed.
+  /// Its tracked cam0 lines (`lines`) are described too when options.use_lines.
+  void queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left, const std::vector<PointObservation>& points,
+                     const std::vector<LineObservation>& lines = {});
+  /// The odometry's window after a frame (oldest first), its triangulated point landmarks (sorted by id) and its line
+  /// landmarks (sorted by id, endpoints in W): updates the queued keyframes still in it, and inserts those that have
+  /// left it. Returns the loops closed.
   int updateWindow(const std::vector<std::pair<Timestamp, Pose>>& window,
-                   const std::vector<std::pair<std::int64_t, Vec3>>& landmarks);
+                   const std::vector<std::pair<std::int64_t, Vec3>>& landmarks,
+                   const std::vector<MapLine>& line_landmarks = {});
   /// The rig's extrinsics as the odometry now uses them (its online refinement, EstimatorOutput::T_B_R * T_B_C0);
   /// used for what follows: landmark depths and loop measurements.
   void setExtrinsics(const Pose& T_B_C0) { T_B_C0_ = T_B_C0; }
@@ -82,6 +86,7 @@ class LoopCloser {
     Pose T_W_B;
     PlaceFeatures place;
     std::vector<Vec3> p_W;  // the window's landmark position of each tracked corner at T_W_B's estimate (NaN: none)
+    std::vector<MapLine> lines_W;  // the window's line landmarks of its tracked lines at that estimate (sorted by id)
   };
   bool insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place);
   /// Inserts the queued keyframes older than `limit`, with their corners at their last landmark positions; returns

@@ -30,6 +30,11 @@ struct LoopOptions {
   double guided_radius_px = 25.0;      // when descriptor matching finds no loop: match each 3D corner to the corners
                                        // within this radius of where the corrected odometry projects it, pixels
                                        // (0: off)
+  bool use_lines = true;               // when points find no loop either way, verify it with points and lines
+                                       // together (the keyframes' tracked lines, LBD-described; needs the guided
+                                       // radius): low-texture keyframes keep few 3D corners but many lines
+  int line_max_hamming = 70;           // LBD distance of a line match, bits of 256
+  double line_max_angle_deg = 5.0;     // direction difference of a line match from its predicted projection, deg
   double max_yaw_change_deg = 30.0;    // the loop's yaw correction must be smaller, deg
   // Pose graph (pose_graph.h): x, y, z and yaw per keyframe; roll and pitch stay the odometry's (IMU-observable).
   int sequential_edges = 4;            // odometry edges from each keyframe to the previous ones
@@ -72,6 +77,9 @@ struct LoopOptions {
     v("guided_radius_px", guided_radius_px,
       "guided matching around the corrected odometry's projection when descriptors find no loop, pixels (0: off)",
       0.0, 1000.0);
+    v("use_lines", use_lines, "verify loops that points miss with points and lines together");
+    v("line_max_hamming", line_max_hamming, "LBD distance of a line match, bits", 0, 256);
+    v("line_max_angle_deg", line_max_angle_deg, "direction difference of a line match, deg", 0.1, 90.0);
     v("max_yaw_change_deg", max_yaw_change_deg, "largest yaw correction of one loop, deg", 0.1, 180.0);
     v("sequential_edges", sequential_edges, "odometry edges from each keyframe to the previous ones", 1, 100);
     v("odometry_sigma_m", odometry_sigma_m, "odometry edge sigma, m", 1e-6, 10.0);

@@ -6,13 +6,17 @@
 // solving PnP in RANSAC (as VINS-Mono does with its extra BRIEF corners).
 #pragma once
 
+#include <array>
 #include <optional>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "linnet/core/frame_observations.h"
+#include "linnet/core/map_line.h"
 #include "linnet/core/pose.h"
+#include "linnet/features/line_lbd.h"
+#include "linnet/features/line_types.h"
 
 namespace linnet {
 
@@ -27,6 +31,12 @@ struct PlaceFeatures {
   std::vector<Vec3> tracked_stereo_p_C;
   std::vector<Vec2> uv;     // every described corner (tracked and detected): normalised, undistorted cam0 coordinates
   cv::Mat descriptors_2d;   // their ORB descriptors
+  // The keyframe's tracked lines in cam0 (describePlaceLines): track id, normalised undistorted endpoints, LBD
+  // descriptor, and the 3D segment in cam0 from the odometry's line landmark (setPlaceLines; NaN: none).
+  std::vector<std::int64_t> line_ids;
+  std::vector<std::array<Vec2, 2>> line_uv;
+  std::vector<LbdDescriptor> line_desc;
+  std::vector<std::array<Vec3, 2>> line_p_C;
 };
 
 struct PlaceDescription {
@@ -55,6 +65,12 @@ struct PlaceMatchOptions {
   // keep too few 3D corners for the ratio test over the whole image to find enough pairs.
   std::optional<Pose> prior_T_Cold_Cnew;
   double guided_radius_px = 0.0;
+  // With a prior, when points alone find no loop: the lines' 3D segments matched to the other keyframe's lines
+  // around their projections (direction within line_max_angle_deg, LBD distance line_max_hamming) and the pose
+  // refined from the prior on points and lines together (matchPlacesWithLines).
+  bool use_lines = false;
+  int line_max_hamming = 70;        // bits of 256
+  double line_max_angle_deg = 5.0;  // degrees
 };
 
 struct PlaceMatch {
@@ -77,5 +93,22 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
 /// those pairs (EPnP in RANSAC, then iterative refinement on the inliers); if that fails, the other way round; if
 /// that fails too and a prior pose is given, both again with the pairs of guided matching. Deterministic.
 PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options);
+
+/// Adds the keyframe's tracked cam0 lines to its place description, with LBD descriptors computed on `left` (the 3D
+/// segments unknown until setPlaceLines).
+void describePlaceLines(const cv::Mat& left, const std::vector<LineObservation>& lines, const LbdOptions& lbd,
+                        PlaceFeatures* f);
+
+/// Sets line_p_C from the odometry's line landmarks (`window_lines`, sorted by id; endpoints in W) seen from T_W_C:
+/// each tracked line with a landmark whose both endpoints are in front of the camera.
+void setPlaceLines(const std::vector<MapLine>& window_lines, const Pose& T_W_C, PlaceFeatures* f);
+
+/// Loop verification with points and lines around options.prior_T_Cold_Cnew: one keyframe's 3D corners and 3D line
+/// segments matched to the other's corners and lines near their predicted projections (guided_radius_px), then the
+/// relative pose refined from the prior by robust Gauss-Newton on the point reprojection errors and the distances of
+/// the projected segment ends to the matched image lines. A loop needs min_inliers points and lines within ransac_px.
+/// The new keyframe's 3D features are tried first, then the old one's. Not ok without a prior.
+PlaceMatch matchPlacesWithLines(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf,
+                                const PlaceMatchOptions& options);
 
 }  // namespace linnet
