@@ -283,6 +283,29 @@ TEST(PlaceMatcher, LinesCloseALoopThatTooFewCornersCannot) {
   EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
 }
 
+TEST(PlaceMatcher, PlaceLinesTakeTheWindowLandmarksInTheCameraFrame) {
+  PlaceFeatures f;
+  f.line_ids = {3, 5, 8};
+  f.line_uv.assign(3, {Vec2::Zero(), Vec2::Zero()});
+  f.line_desc.assign(3, LbdDescriptor{});
+  f.line_p_C.assign(3, {Vec3::Zero(), Vec3::Zero()});
+  const Pose T_W_C(expSO3(Vec3(0.1, 0.2, -0.3)), Vec3(1.0, 2.0, 0.5));
+  const Vec3 a_C(0.2, 0.1, 3.0), b_C(-0.4, 0.3, 2.5);
+  std::vector<MapLine> window(3);
+  window[0].id = 3;  // in front
+  window[0].a = T_W_C * a_C;
+  window[0].b = T_W_C * b_C;
+  window[1].id = 4;  // not one of the keyframe's lines
+  window[2].id = 8;  // one end behind the camera
+  window[2].a = T_W_C * a_C;
+  window[2].b = T_W_C * Vec3(0.0, 0.0, -1.0);
+  setPlaceLines(window, T_W_C, &f);
+  EXPECT_LT((f.line_p_C[0][0] - a_C).norm(), 1e-12);
+  EXPECT_LT((f.line_p_C[0][1] - b_C).norm(), 1e-12);
+  EXPECT_FALSE(f.line_p_C[1][0].allFinite()) << "no landmark for id 5";
+  EXPECT_FALSE(f.line_p_C[2][0].allFinite()) << "behind the camera";
+}
+
 TEST(PlaceMatcher, DescribesTrackedCornersWithStereoDepthAndMoreCorners) {
   const test::WallScene scene;
   const Pose T_W_C = scene.cameraAt(Vec3(0.3, 0.0, 1.2), 0.1);
