@@ -21,6 +21,24 @@ constexpr double kDegToRad = M_PI / 180.0;
 
 double wrapPi(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 
+// A keyframe's description as the database keeps it for the rest of the run: descriptor matrices and vectors at
+// their exact size (row-by-row push_back leaves up to twice the room), the tracked corners' copies that only
+// setPlaceDepths needed dropped.
+PlaceFeatures compacted(PlaceFeatures f) {
+  f.descriptors_3d = f.descriptors_3d.clone();
+  f.descriptors_2d = f.descriptors_2d.clone();
+  f.tracked_descriptors = cv::Mat();
+  f.tracked_ids = {};
+  f.tracked_stereo_p_C = {};
+  f.p_C.shrink_to_fit();
+  f.uv.shrink_to_fit();
+  f.line_ids.shrink_to_fit();
+  f.line_uv.shrink_to_fit();
+  f.line_desc.shrink_to_fit();
+  f.line_p_C.shrink_to_fit();
+  return f;
+}
+
 PlaceDescription placeDescription(const LoopOptions& o) {
   PlaceDescription pd;
   pd.patch_px = o.orb_patch_px;
@@ -102,7 +120,7 @@ bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
     graph_.addEdge(graph_.odometryEdge(i, k, options_.odometry_sigma_m + options_.odometry_sigma_per_m * length,
                                        options_.odometry_sigma_yaw_deg * kDegToRad));
   }
-  kf.place = std::move(place);
+  kf.place = compacted(std::move(place));
   keyframes_.push_back(std::move(kf));
   if (any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops))
     return false;
