@@ -122,9 +122,35 @@ bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
   }
   kf.place = compacted(std::move(place));
   keyframes_.push_back(std::move(kf));
-  if (any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops))
-    return false;
-  return tryLoop(k);
+  const bool loop = !(any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops)) &&
+                    tryLoop(k);
+  if (placeDescribedBefore(k)) keyframes_[k].place = PlaceFeatures{};
+  return loop;
+}
+
+std::size_t LoopCloser::describedKeyframes() const {
+  return static_cast<std::size_t>(std::count_if(keyframes_.begin(), keyframes_.end(), [](const Keyframe& kf) {
+    return !kf.place.uv.empty() || !kf.place.line_uv.empty();
+  }));
+}
+
+bool LoopCloser::placeDescribedBefore(std::size_t k) const {
+  // A revisit: an older keyframe, described and at least min_time_gap_s older, within place_reuse_m and
+  // place_reuse_deg of this one (corrected poses). Its description stands for the place; keeping every revisit's
+  // would grow the database without bound on a long flight over the same space.
+  if (!(options_.place_reuse_m > 0.0)) return false;
+  const Keyframe& now = keyframes_[k];
+  const Pose P = graph_.pose(k);
+  const Vec3 axis = P.R() * T_B_C0_.R().col(2);
+  const double cos_max = std::cos(options_.place_reuse_deg * kDegToRad);
+  for (std::size_t j = 0; j < k; ++j) {
+    const Keyframe& old = keyframes_[j];
+    if (toSeconds(now.t - old.t) < options_.min_time_gap_s) break;
+    if (old.place.uv.empty() && old.place.line_uv.empty()) continue;
+    const Pose Q = graph_.pose(j);
+    if ((Q.p - P.p).norm() < options_.place_reuse_m && axis.dot(Q.R() * T_B_C0_.R().col(2)) > cos_max) return true;
+  }
+  return false;
 }
 
 bool LoopCloser::tryLoop(std::size_t k) {
@@ -136,6 +162,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
   for (std::size_t j = 0; j < k; ++j) {
     const Keyframe& old = keyframes_[j];
     if (toSeconds(now.t - old.t) < options_.min_time_gap_s) break;  // keyframes are in time order
+    if (old.place.uv.empty() && old.place.line_uv.empty()) continue;  // a revisit without its own description
     const Pose P_old = graph_.pose(j);
     const double d = (P_new.p - P_old.p).norm();
     const double radius = options_.search_radius_m + options_.search_radius_per_m * (now.path_m - old.path_m);
@@ -180,10 +207,19 @@ bool LoopCloser::tryLoop(std::size_t k) {
       sigma_yaw = std::max(sigma_yaw, options_.loop_pnp_sigma_scale * largestStd(m.covariance.block<3, 3>(0, 0)));
     }
     graph_.addEdge(graph_.loopEdge(j, k, T_Bj_Bk, sigma_t, sigma_yaw));
+    // A loop the corrected graph already agrees with (within consistent_loop_sigmas of its edge's sigmas) changes it
+    // little: its edge is
+    // kept for the next solve, and the whole graph is not solved again now (on a long flight over the same space
+    // most loops are of this kind, and each solve costs in proportion to all keyframes).
+    const Pose now_rel = graph_.pose(j).inverse() * P_new;
+    const double yaw_gap = wrapPi(graph_.heading(k, graph_.pose(j).R() * T_Bj_Bk.R()) - graph_.heading(k, P_new.R()));
+    const double k_sigma = options_.consistent_loop_sigmas;
+    const bool consistent = k_sigma > 0.0 && (T_Bj_Bk.p - now_rel.p).norm() < k_sigma * sigma_t &&
+                            std::abs(yaw_gap) < k_sigma * sigma_yaw;
     PoseGraphOptions po;
     po.loop_huber = options_.loop_huber;
     po.max_iterations = options_.max_iterations;
-    if (!graph_.optimise(po)) continue;
+    if (!consistent && !graph_.optimise(po)) continue;
     LoopEvent e;
     e.t_new = now.t;
     e.t_old = keyframes_[j].t;

@@ -106,5 +106,31 @@ TEST(LoopCloser, FindsNoLoopOnAFlightThatNeverComesBack) {
   EXPECT_LT((loop.latestCorrection().p).norm(), 1e-12);
 }
 
+TEST(LoopCloser, ARevisitOfADescribedPlaceKeepsNoDescription) {
+  // Hovering at two spots in turn, 30 s apart: the first keyframe at each spot describes it, the revisits add
+  // graph nodes but no descriptions (they still verify loops against it).
+  const test::WallScene scene;
+  LoopOptions o;
+  o.enabled = true;
+  LoopCloser loop(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
+  for (int k = 0; k < 8; ++k) {
+    const Pose T = test::WallScene::cameraAt(Vec3(k % 2 == 0 ? -0.5 : 0.5, 0.0, 1.2), 0.0);
+    const cv::Mat image = scene.render(T);
+    loop.addKeyframe(static_cast<Timestamp>(k * 3e10), T, image, scene.trackedCorners(image, T, 150));
+  }
+  EXPECT_EQ(loop.keyframes(), 8u);
+  EXPECT_EQ(loop.describedKeyframes(), 2u);
+  EXPECT_FALSE(loop.loops().empty());
+  // Off: every keyframe keeps its description.
+  o.place_reuse_m = 0.0;
+  LoopCloser all(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
+  for (int k = 0; k < 8; ++k) {
+    const Pose T = test::WallScene::cameraAt(Vec3(k % 2 == 0 ? -0.5 : 0.5, 0.0, 1.2), 0.0);
+    const cv::Mat image = scene.render(T);
+    all.addKeyframe(static_cast<Timestamp>(k * 3e10), T, image, scene.trackedCorners(image, T, 150));
+  }
+  EXPECT_EQ(all.describedKeyframes(), 8u);
+}
+
 }  // namespace
 }  // namespace linnet

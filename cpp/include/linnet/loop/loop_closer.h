@@ -74,6 +74,8 @@ class LoopCloser {
 
   const std::vector<LoopEvent>& loops() const { return loops_; }
   std::size_t keyframes() const { return keyframes_.size(); }
+  /// Keyframes that keep a place description (a revisit of a described place keeps none: options.place_reuse_m).
+  std::size_t describedKeyframes() const;
 
  private:
   struct Keyframe {
@@ -93,6 +95,7 @@ class LoopCloser {
   /// the loops closed.
   int insertQueuedBefore(Timestamp limit);
   bool tryLoop(std::size_t new_index);
+  bool placeDescribedBefore(std::size_t k) const;
 
   LoopOptions options_;
   const CameraModel& cam0_;

@@ -15,6 +15,13 @@ struct LoopOptions {
   double max_view_angle_deg = 35.0;    // largest angle between the two keyframes' optical axes, deg
   int max_candidates = 3;              // nearest candidates verified per keyframe
   int min_keyframes_between_loops = 5; // keyframes after an accepted loop before the next is looked for
+  double place_reuse_m = 0.15;         // a keyframe within this distance of an older described one (and within
+                                       // place_reuse_deg of its view) keeps no description of its own, m (0: keep
+                                       // all); bounds the database on long flights over the same space
+  double place_reuse_deg = 10.0;       // deg (well inside max_view_angle_deg: the older one still verifies loops there)
+  double consistent_loop_sigmas = 1.0; // a loop within this many of its edge's sigmas of the corrected graph is added
+                                       // without a new solve of the whole graph (0: always solve); the loop edges'
+                                       // measured error is about 1.5 sigma RMS
   // Geometric verification (place_matcher.h).
   int orb_patch_px = 31;               // ORB descriptor patch side, pixels
   int corners = 400;                   // FAST corners described per keyframe besides the tracked ones
@@ -64,6 +71,11 @@ struct LoopOptions {
       1.0);
     v("max_view_angle_deg", max_view_angle_deg, "largest angle between the optical axes of a loop, deg", 1.0, 180.0);
     v("max_candidates", max_candidates, "nearest candidates verified per keyframe", 1, 100);
+    v("place_reuse_m", place_reuse_m, "a keyframe this close to an older described one keeps no description, m", 0.0,
+      100.0);
+    v("place_reuse_deg", place_reuse_deg, "and within this view angle of it, deg", 0.0, 180.0);
+    v("consistent_loop_sigmas", consistent_loop_sigmas,
+      "no graph solve for a loop within this many edge sigmas of the corrected graph (0: always)", 0.0, 100.0);
     v("min_keyframes_between_loops", min_keyframes_between_loops, "keyframes after a loop before the next search",
       0, 100000);
     v("orb_patch_px", orb_patch_px, "ORB descriptor patch side, pixels", 7, 101);
