@@ -108,27 +108,25 @@ TEST(LoopCloser, FindsNoLoopOnAFlightThatNeverComesBack) {
 
 TEST(LoopCloser, ARevisitOfADescribedPlaceKeepsNoDescription) {
   // Hovering at two spots in turn, 30 s apart: the first keyframe at each spot describes it, the revisits add
-  // graph nodes but no descriptions (they still verify loops against it).
+  // graph nodes but no descriptions (they still verify loops against it). Off: every keyframe keeps its own.
   const test::WallScene scene;
+  const auto hover = [&](LoopCloser* loop) {
+    for (int k = 0; k < 8; ++k) {
+      const Pose T = test::WallScene::cameraAt(Vec3(k % 2 == 0 ? -0.5 : 0.5, 0.0, 1.2), 0.0);
+      const cv::Mat image = scene.render(T);
+      loop->addKeyframe(static_cast<Timestamp>(k * 3e10), T, image, scene.trackedCorners(image, T, 150));
+    }
+  };
   LoopOptions o;
   o.enabled = true;
   LoopCloser loop(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
-  for (int k = 0; k < 8; ++k) {
-    const Pose T = test::WallScene::cameraAt(Vec3(k % 2 == 0 ? -0.5 : 0.5, 0.0, 1.2), 0.0);
-    const cv::Mat image = scene.render(T);
-    loop.addKeyframe(static_cast<Timestamp>(k * 3e10), T, image, scene.trackedCorners(image, T, 150));
-  }
+  hover(&loop);
   EXPECT_EQ(loop.keyframes(), 8u);
   EXPECT_EQ(loop.describedKeyframes(), 2u);
   EXPECT_FALSE(loop.loops().empty());
-  // Off: every keyframe keeps its description.
   o.place_reuse_m = 0.0;
   LoopCloser all(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
-  for (int k = 0; k < 8; ++k) {
-    const Pose T = test::WallScene::cameraAt(Vec3(k % 2 == 0 ? -0.5 : 0.5, 0.0, 1.2), 0.0);
-    const cv::Mat image = scene.render(T);
-    all.addKeyframe(static_cast<Timestamp>(k * 3e10), T, image, scene.trackedCorners(image, T, 150));
-  }
+  hover(&all);
   EXPECT_EQ(all.describedKeyframes(), 8u);
 }
 
