@@ -13,6 +13,12 @@ namespace linnet {
 
 namespace {
 constexpr double kDegToRad = M_PI / 180.0;
+
+// A line as it stands (its last solve's estimate and extent), as a map line.
+MapLine currentMapLine(std::int64_t id, const LineLandmark& lm) {
+  return MapLine{id, lm.a, lm.b, lm.observations, lm.t_last, std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad};
+}
+
 constexpr std::size_t kMaxSightings = 100;  // a line's sightings kept for the map's refinement (up to twice as many)
 }
 
@@ -168,10 +174,7 @@ void LineLandmarks::archive(const LineLandmark& lm) {
 }
 
 MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineSighting>& sightings) const {
-  MapLine m;
-  m.id = lm.id;
-  m.a = lm.a;
-  m.b = lm.b;
+  MapLine m = currentMapLine(lm.id, lm);
   Vec6 L = lm.L();
   LineRefinementOptions ro;
   ro.focal_px = focal_length_;
@@ -189,9 +192,6 @@ MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineS
       m.b = refined.b;
     }
   }
-  m.observations = lm.observations;
-  m.t_last = lm.t_last;
-  m.angle_deg = std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad;
   m.sigma_m = lineEndpointSigmaM(L, sightings, m.a, m.b, focal_length_, options_.pixel_sigma);
   return m;
 }
@@ -411,8 +411,7 @@ int LineLandmarks::countUsed() const {
 std::vector<MapLine> LineLandmarks::windowLines() const {
   std::vector<MapLine> out;
   for (const auto& [id, lm] : landmarks_)
-    if (lm.triangulated && lm.has_extent)
-      out.push_back(MapLine{id, lm.a, lm.b, lm.observations, lm.t_last, std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad});
+    if (lm.triangulated && lm.has_extent) out.push_back(currentMapLine(id, lm));
   return out;
 }
 
@@ -421,8 +420,7 @@ std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
   for (const auto& [id, lm] : landmarks_) {
     if (!lm.triangulated || !lm.has_extent) continue;
     if (window == nullptr || !options_.map_refine) {
-      all[id] = MapLine{id, lm.a, lm.b, lm.observations, lm.t_last,
-                        std::asin(std::min(1.0, lm.max_sin_angle)) / kDegToRad};
+      all[id] = currentMapLine(id, lm);
       continue;
     }
     // Its sightings that left the window, then those in it (as removeFrame will add them).

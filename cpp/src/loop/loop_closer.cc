@@ -39,6 +39,9 @@ PlaceFeatures compacted(PlaceFeatures f) {
   return f;
 }
 
+// False for a revisit's keyframe, whose description was dropped (placeDescribedBefore).
+bool described(const PlaceFeatures& f) { return !f.uv.empty() || !f.line_uv.empty(); }
+
 PlaceDescription placeDescription(const LoopOptions& o) {
   PlaceDescription pd;
   pd.patch_px = o.orb_patch_px;
@@ -122,16 +125,16 @@ bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
   }
   kf.place = compacted(std::move(place));
   keyframes_.push_back(std::move(kf));
-  const bool loop = !(any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops)) &&
-                    tryLoop(k);
+  const bool too_soon =
+      any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops);
+  const bool loop = !too_soon && tryLoop(k);
   if (placeDescribedBefore(k)) keyframes_[k].place = PlaceFeatures{};
   return loop;
 }
 
 std::size_t LoopCloser::describedKeyframes() const {
-  return static_cast<std::size_t>(std::count_if(keyframes_.begin(), keyframes_.end(), [](const Keyframe& kf) {
-    return !kf.place.uv.empty() || !kf.place.line_uv.empty();
-  }));
+  return static_cast<std::size_t>(
+      std::count_if(keyframes_.begin(), keyframes_.end(), [](const Keyframe& kf) { return described(kf.place); }));
 }
 
 bool LoopCloser::placeDescribedBefore(std::size_t k) const {
@@ -146,7 +149,7 @@ bool LoopCloser::placeDescribedBefore(std::size_t k) const {
   for (std::size_t j = 0; j < k; ++j) {
     const Keyframe& old = keyframes_[j];
     if (toSeconds(now.t - old.t) < options_.min_time_gap_s) break;
-    if (old.place.uv.empty() && old.place.line_uv.empty()) continue;
+    if (!described(old.place)) continue;
     const Pose Q = graph_.pose(j);
     if ((Q.p - P.p).norm() < options_.place_reuse_m && axis.dot(Q.R() * T_B_C0_.R().col(2)) > cos_max) return true;
   }
@@ -162,7 +165,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
   for (std::size_t j = 0; j < k; ++j) {
     const Keyframe& old = keyframes_[j];
     if (toSeconds(now.t - old.t) < options_.min_time_gap_s) break;  // keyframes are in time order
-    if (old.place.uv.empty() && old.place.line_uv.empty()) continue;  // a revisit without its own description
+    if (!described(old.place)) continue;  // a revisit without its own description
     const Pose P_old = graph_.pose(j);
     const double d = (P_new.p - P_old.p).norm();
     const double radius = options_.search_radius_m + options_.search_radius_per_m * (now.path_m - old.path_m);
@@ -186,13 +189,14 @@ bool LoopCloser::tryLoop(std::size_t k) {
   mo.line_max_hamming = options_.line_max_hamming;
   mo.line_max_angle_deg = options_.line_max_angle_deg;
   for (const auto& [distance, j] : candidates) {
-    // The corrected odometry's relative pose of the two cameras, for guided matching.
+    // The corrected odometry's relative pose of the two bodies: what the measured one must agree with within the
+    // search bounds; in the cameras, the prior of guided matching (multiplied out left to right, as the loops
+    // measured so far were).
+    const Pose predicted = graph_.pose(j).inverse() * P_new;
     mo.prior_T_Cold_Cnew = T_B_C0_.inverse() * graph_.pose(j).inverse() * P_new * T_B_C0_;
     const PlaceMatch m = matchPlaces(keyframes_[j].place, now.place, mo);
     if (!m.ok) continue;
     const Pose T_Bj_Bk = T_B_C0_ * m.T_Cold_Cnew * T_B_C0_.inverse();
-    // The measured relative pose must agree with the corrected odometry within the search bounds.
-    const Pose predicted = graph_.pose(j).inverse() * P_new;
     const double radius =
         options_.search_radius_m + options_.search_radius_per_m * (now.path_m - keyframes_[j].path_m);
     const double dyaw = wrapPi(graph_.heading(k, graph_.pose(j).R() * T_Bj_Bk.R()) - graph_.heading(k, P_new.R()));
@@ -208,14 +212,11 @@ bool LoopCloser::tryLoop(std::size_t k) {
     }
     graph_.addEdge(graph_.loopEdge(j, k, T_Bj_Bk, sigma_t, sigma_yaw));
     // A loop the corrected graph already agrees with (within consistent_loop_sigmas of its edge's sigmas) changes it
-    // little: its edge is
-    // kept for the next solve, and the whole graph is not solved again now (on a long flight over the same space
-    // most loops are of this kind, and each solve costs in proportion to all keyframes).
-    const Pose now_rel = graph_.pose(j).inverse() * P_new;
-    const double yaw_gap = wrapPi(graph_.heading(k, graph_.pose(j).R() * T_Bj_Bk.R()) - graph_.heading(k, P_new.R()));
+    // little: its edge is kept for the next solve, and the whole graph is not solved again now (on a long flight
+    // over the same space most loops are of this kind, and each solve costs in proportion to all keyframes).
     const double k_sigma = options_.consistent_loop_sigmas;
-    const bool consistent = k_sigma > 0.0 && (T_Bj_Bk.p - now_rel.p).norm() < k_sigma * sigma_t &&
-                            std::abs(yaw_gap) < k_sigma * sigma_yaw;
+    const bool consistent = k_sigma > 0.0 && (T_Bj_Bk.p - predicted.p).norm() < k_sigma * sigma_t &&
+                            std::abs(dyaw) < k_sigma * sigma_yaw;
     PoseGraphOptions po;
     po.loop_huber = options_.loop_huber;
     po.max_iterations = options_.max_iterations;
