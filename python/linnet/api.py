@@ -170,6 +170,7 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
         summary["loop_closure"] = {
             "loops": len(loops),
             "largest_correction_m": max((e["correction_m"] for e in loops), default=0.0),
+            **run.loop_stats,
             "events": [{"t_new_s": 1e-9 * e["t_new_ns"], "t_old_s": 1e-9 * e["t_old_ns"], "inliers": e["inliers"],
                         "correction_m": e["correction_m"], "correction_yaw_deg": e["correction_yaw_deg"],
                         "T_old_new": e["T_old_new"].tolist(), "sigma_m": e["sigma_m"],

@@ -65,3 +65,20 @@ def test_stage_table_shares(tmp_path):
     shares = [table[k]["share"] for k in ("points_cpu", "lines_cpu", "backend_cpu")]
     assert abs(sum(shares) - 1.0) < 1e-12 and abs(shares[0] - 3.5 / 6.5) < 1e-12
     assert table["frame_cpu"]["median_ms"] == 6.5 and table["solver"]["median_ms"] == 0.8
+
+
+def test_memory_growth_from_timing(tmp_path):
+    from linnet.commands.bench_stages import memory_growth
+
+    header = ("#timestamp [ns],frontend_ms,backend_ms,total_ms,point_ms,line_ms,points,stereo_points,lines,keyframe,"
+              "status,point_cpu_ms,line_cpu_ms,backend_cpu_ms,line_backend_ms,solver_ms,landmark_points,"
+              "landmark_lines,loop_cpu_ms,rss_mb")
+    # 20 Hz for 120 s; the resident set grows by 0.1 MB per second of data from 100 MB.
+    rows = [f"{i * 50_000_000},5,2,7,4,5,100,80,30,0,1,3,2,1,0.2,0.8,90,20,0,{100 + 0.1 * i * 0.05:.3f}"
+            for i in range(2401)]
+    csv = tmp_path / "timing.csv"
+    csv.write_text(header + "\n" + "\n".join(rows) + "\n")
+    m = memory_growth(csv)
+    assert abs(m["rss_after_mb"] - 106.0) < 1e-9 and abs(m["rss_end_mb"] - 112.0) < 1e-9
+    assert abs(m["growth"] - (112.0 / 106.0 - 1.0)) < 1e-12 and abs(m["end_s"] - 120.0) < 1e-9
+    assert memory_growth(csv, after_s=500.0) is None

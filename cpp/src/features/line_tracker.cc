@@ -11,6 +11,7 @@
 #include <numeric>
 #include <string>
 
+#include "linnet/core/cpu_clock.h"
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
 #include "linnet/geometry/plucker.h"
@@ -22,13 +23,6 @@ using Clock = std::chrono::steady_clock;
 
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-// CPU time of the calling thread, ms (POSIX): unaffected by time slices given to other processes.
-double threadCpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
 // True when `seg` lies on `other` (same direction within 5 degrees, both endpoints within 3 px of its line,

@@ -91,7 +91,22 @@ int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& wind
   return insertQueuedBefore(window.empty() ? std::numeric_limits<Timestamp>::max() : window.front().first);
 }
 
-int LoopCloser::flush() { return insertQueuedBefore(std::numeric_limits<Timestamp>::max()); }
+int LoopCloser::flush() {
+  const int loops = insertQueuedBefore(std::numeric_limits<Timestamp>::max());
+  if (local_solves_pending_) {
+    ++solves_;
+    graph_.optimise(solveOptions());
+    local_solves_pending_ = false;
+  }
+  return loops;
+}
+
+PoseGraphOptions LoopCloser::solveOptions() const {
+  PoseGraphOptions po;
+  po.loop_huber = options_.loop_huber;
+  po.max_iterations = options_.max_iterations;
+  return po;
+}
 
 int LoopCloser::insertQueuedBefore(Timestamp limit) {
   int loops = 0;
@@ -108,10 +123,10 @@ int LoopCloser::insertQueuedBefore(Timestamp limit) {
 bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
   Keyframe kf;
   kf.t = t;
-  if (!keyframes_.empty()) {
-    const Pose& prev = graph_.odometryPose(keyframes_.size() - 1);
-    kf.path_m = keyframes_.back().path_m + (T_W_B.p - prev.p).norm();
-  }
+  if (inserted_ > 0) path_m_ += (T_W_B.p - last_odometry_p_).norm();
+  kf.path_m = path_m_;
+  last_odometry_p_ = T_W_B.p;
+  ++inserted_;
   const Pose correction = latestCorrection();
   const std::size_t k = graph_.addNode(T_W_B);
   graph_.setEstimate(k, correction * T_W_B);
@@ -126,15 +141,33 @@ bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
   kf.place = compacted(std::move(place));
   keyframes_.push_back(std::move(kf));
   const bool too_soon =
-      any_loop_ && k - last_loop_index_ < static_cast<std::size_t>(options_.min_keyframes_between_loops);
+      any_loop_ && inserted_ - 1 - last_loop_keyframe_ < static_cast<std::size_t>(options_.min_keyframes_between_loops);
   const bool loop = !too_soon && tryLoop(k);
-  if (placeDescribedBefore(k)) keyframes_[k].place = PlaceFeatures{};
+  if (loop) last_loop_keyframe_ = inserted_ - 1;
+  if (placeDescribedBefore(k)) {
+    keyframes_[k].place = PlaceFeatures{};
+    // Without a description and a loop edge, the revisit's node would only relay the odometry between its
+    // neighbours: the graph links them directly instead (its frames take the previous node's correction).
+    if (!loop && options_.cull_revisits) {
+      graph_.removeLastNode();
+      keyframes_.pop_back();
+    }
+  }
   return loop;
 }
 
 std::size_t LoopCloser::describedKeyframes() const {
   return static_cast<std::size_t>(
       std::count_if(keyframes_.begin(), keyframes_.end(), [](const Keyframe& kf) { return described(kf.place); }));
+}
+
+LoopStats LoopCloser::stats() const {
+  LoopStats s;
+  s.keyframes = inserted_;
+  s.graph_nodes = keyframes_.size();
+  s.described = describedKeyframes();
+  s.graph_solves = solves_;
+  return s;
 }
 
 bool LoopCloser::placeDescribedBefore(std::size_t k) const {
@@ -214,13 +247,21 @@ bool LoopCloser::tryLoop(std::size_t k) {
     // A loop the corrected graph already agrees with (within consistent_loop_sigmas of its edge's sigmas) changes it
     // little: its edge is kept for the next solve, and the whole graph is not solved again now (on a long flight
     // over the same space most loops are of this kind, and each solve costs in proportion to all keyframes).
-    const double k_sigma = options_.consistent_loop_sigmas;
-    const bool consistent = k_sigma > 0.0 && (T_Bj_Bk.p - predicted.p).norm() < k_sigma * sigma_t &&
-                            std::abs(dyaw) < k_sigma * sigma_yaw;
-    PoseGraphOptions po;
-    po.loop_huber = options_.loop_huber;
-    po.max_iterations = options_.max_iterations;
-    if (!consistent && !graph_.optimise(po)) continue;
+    auto within = [&](double sigmas) {
+      return (T_Bj_Bk.p - predicted.p).norm() < sigmas * sigma_t && std::abs(dyaw) < sigmas * sigma_yaw;
+    };
+    const bool consistent = options_.consistent_loop_sigmas > 0.0 && within(options_.consistent_loop_sigmas);
+    PoseGraphOptions po = solveOptions();
+    // A small correction moves the newest nodes mostly: they are solved with the older ones held, at a cost that
+    // does not grow with the graph. The whole graph is solved again at the end of the stream.
+    const auto window = static_cast<std::size_t>(options_.solve_window_nodes);
+    if (window > 0 && graph_.size() > window && within(options_.full_solve_sigmas))
+      po.first_free_node = graph_.size() - window;
+    if (!consistent) {
+      ++solves_;
+      if (!graph_.optimise(po)) continue;
+      local_solves_pending_ = po.first_free_node > 0;  // a whole solve covers the local ones before it
+    }
     LoopEvent e;
     e.t_new = now.t;
     e.t_old = keyframes_[j].t;
@@ -232,7 +273,6 @@ bool LoopCloser::tryLoop(std::size_t k) {
     e.correction_m = (after.p - P_new.p).norm();
     e.correction_yaw_deg = std::abs(wrapPi(graph_.heading(k, after.R()) - graph_.heading(k, P_new.R()))) / kDegToRad;
     loops_.push_back(e);
-    last_loop_index_ = k;
     any_loop_ = true;
     return true;
   }

@@ -1,5 +1,6 @@
 #include "linnet/loop/pose_graph.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <ceres/ceres.h>
@@ -98,21 +99,33 @@ PoseGraphEdge PoseGraph::loopEdge(std::size_t i, std::size_t j, const Pose& T_Bi
 
 void PoseGraph::addEdge(const PoseGraphEdge& e) { edges_.push_back(e); }
 
+void PoseGraph::removeLastNode() {
+  if (nodes_.empty()) return;
+  const std::size_t k = nodes_.size() - 1;
+  std::erase_if(edges_, [k](const PoseGraphEdge& e) { return e.i == k || e.j == k; });
+  nodes_.pop_back();
+}
+
 bool PoseGraph::optimise(const PoseGraphOptions& options) {
   if (nodes_.size() < 2 || edges_.empty()) return true;
-  std::vector<Node> backup = nodes_;
+  // Nodes before `first` are held: only edges to a free node enter the problem (the others' cost is constant).
+  const std::size_t first = std::min(options.first_free_node, nodes_.size() - 1);
+  std::vector<Node> backup(nodes_.begin() + static_cast<std::ptrdiff_t>(first), nodes_.end());
   ceres::Problem::Options po;
   po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(po);
   for (const PoseGraphEdge& e : edges_) {
+    if (std::max(e.i, e.j) < first) continue;
     auto* cost = new ceres::AutoDiffCostFunction<EdgeCost, 4, 3, 1, 3, 1>(new EdgeCost(e, nodes_[e.i].R_tilt));
     ceres::LossFunction* loss =
         e.loop && options.loop_huber > 0.0 ? new ceres::HuberLoss(options.loop_huber) : nullptr;
     problem.AddResidualBlock(cost, loss, nodes_[e.i].p, &nodes_[e.i].yaw, nodes_[e.j].p, &nodes_[e.j].yaw);
   }
-  if (problem.HasParameterBlock(nodes_[0].p)) {
-    problem.SetParameterBlockConstant(nodes_[0].p);
-    problem.SetParameterBlockConstant(&nodes_[0].yaw);
+  // Node 0 fixes the gauge, or the held nodes do.
+  for (std::size_t k = 0; k < std::max<std::size_t>(first, 1); ++k) {
+    if (!problem.HasParameterBlock(nodes_[k].p)) continue;
+    problem.SetParameterBlockConstant(nodes_[k].p);
+    problem.SetParameterBlockConstant(&nodes_[k].yaw);
   }
   ceres::Solver::Options so;
   so.max_num_iterations = options.max_iterations;
@@ -127,10 +140,10 @@ bool PoseGraph::optimise(const PoseGraphOptions& options) {
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   if (!summary.IsSolutionUsable()) {
-    nodes_ = std::move(backup);
+    std::copy(backup.begin(), backup.end(), nodes_.begin() + static_cast<std::ptrdiff_t>(first));
     return false;
   }
-  for (Node& n : nodes_) n.yaw = wrapAngle(n.yaw);
+  for (std::size_t k = first; k < nodes_.size(); ++k) nodes_[k].yaw = wrapAngle(nodes_[k].yaw);
   return true;
 }
 

@@ -188,6 +188,7 @@ RunSummary StreamRun::finish() {
   summary.dropped_frames = system_->droppedFrames();
   summary.loop_enabled = config_.loop.enabled && config_.stereo;
   summary.loops = system_->loops();
+  summary.loop_stats = system_->loopStats();
   summary.processed_frames = static_cast<int>(summary.results.size());
   for (const FrameResult& r : summary.results) {
     if (r.estimate.has_pose) {
@@ -326,13 +327,14 @@ void writeRunOutputs(const RunSummary& summary, const std::string& out_dir) {
   if (f == nullptr) throw InputError(timing_path, 0, "cannot write");
   std::fprintf(f, "#timestamp [ns],frontend_ms,backend_ms,total_ms,point_ms,line_ms,points,stereo_points,lines,"
                   "keyframe,status,point_cpu_ms,line_cpu_ms,backend_cpu_ms,line_backend_ms,solver_ms,"
-                  "landmark_points,landmark_lines,loop_cpu_ms\n");
+                  "landmark_points,landmark_lines,loop_cpu_ms,rss_mb\n");
   for (const FrameResult& r : summary.results) {
-    std::fprintf(f, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%.3f\n",
+    std::fprintf(f, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%.3f,%.1f\n",
                  static_cast<long long>(r.estimate.t), r.frontend_ms, r.backend_ms, r.frontend_ms + r.backend_ms,
                  r.point_ms, r.line_ms, r.tracked_points, r.stereo_points, r.tracked_lines,
                  r.estimate.keyframe ? 1 : 0, static_cast<int>(r.estimate.status), r.point_cpu_ms, r.line_cpu_ms,
-                 r.backend_cpu_ms, r.line_backend_ms, r.solver_ms, r.estimate.num_points, r.estimate.num_lines, r.loop_cpu_ms);
+                 r.backend_cpu_ms, r.line_backend_ms, r.solver_ms, r.estimate.num_points, r.estimate.num_lines, r.loop_cpu_ms,
+                 r.rss_mb);
   }
   std::fclose(f);
 }

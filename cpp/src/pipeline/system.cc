@@ -235,6 +235,7 @@ struct System::Impl {
         r.tracked_points = static_cast<int>(item->obs.points.size());
         for (const PointObservation& p : item->obs.points) r.stereo_points += p.has_right ? 1 : 0;
         r.tracked_lines = static_cast<int>(item->obs.lines.size());
+        r.rss_mb = residentSetMb();
         std::function<void(const FrameResult&)> cb;
         {
           std::lock_guard<std::mutex> lock(result_mutex);
@@ -423,6 +424,11 @@ SystemMap System::map() const {
 std::vector<LoopEvent> System::loops() const {
   if (!impl_->loop || !impl_->finished) return {};
   return impl_->loop->loops();
+}
+
+LoopStats System::loopStats() const {
+  if (!impl_->loop || !impl_->finished) return {};
+  return impl_->loop->stats();
 }
 
 }  // namespace linnet

@@ -51,6 +51,18 @@ void bindRun(py::module_& m) {
       .def_readonly("time_offset_s", &RunSummary::time_offset_s)
       .def_readonly("loop_enabled", &RunSummary::loop_enabled)
       .def_property_readonly(
+          "loop_stats",
+          [](const RunSummary& r) {
+            py::dict d;
+            d["keyframes"] = r.loop_stats.keyframes;
+            d["graph_nodes"] = r.loop_stats.graph_nodes;
+            d["described"] = r.loop_stats.described;
+            d["graph_solves"] = r.loop_stats.graph_solves;
+            return d;
+          },
+          "the loop closer's counts: keyframes inserted, of which kept as pose-graph nodes and with a place "
+          "description, and its pose-graph solves")
+      .def_property_readonly(
           "loops",
           [](const RunSummary& r) {
             py::list out;

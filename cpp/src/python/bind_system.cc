@@ -148,6 +148,8 @@ void bindSystem(py::module_& m) {
       .def_readonly("backend_cpu_ms", &FrameResult::backend_cpu_ms)
       .def_readonly("line_backend_ms", &FrameResult::line_backend_ms)
       .def_readonly("solver_ms", &FrameResult::solver_ms)
+      .def_readonly("loop_cpu_ms", &FrameResult::loop_cpu_ms)
+      .def_readonly("rss_mb", &FrameResult::rss_mb, "the process's resident set size after the frame, MB")
       .def_property_readonly("landmark_points", [](const FrameResult& r) { return r.estimate.num_points; })
       .def_property_readonly("landmark_lines", [](const FrameResult& r) { return r.estimate.num_lines; })
       .def_property_readonly(

@@ -124,10 +124,47 @@ TEST(LoopCloser, ARevisitOfADescribedPlaceKeepsNoDescription) {
   EXPECT_EQ(loop.keyframes(), 8u);
   EXPECT_EQ(loop.describedKeyframes(), 2u);
   EXPECT_FALSE(loop.loops().empty());
+  // The revisits that closed no loop are not graph nodes either (o.cull_revisits): the two described keyframes and
+  // those of the loops are (the second keyframe may close a loop with the first: their views overlap).
+  EXPECT_GE(loop.graphNodes(), 3u);
+  EXPECT_LE(loop.graphNodes(), 2u + loop.loops().size());
+  EXPECT_LT(loop.graphNodes(), 8u);
+  EXPECT_EQ(loop.stats().graph_nodes, loop.graphNodes());
+  EXPECT_EQ(loop.stats().described, 2u);
+  o.cull_revisits = false;
+  LoopCloser kept(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
+  hover(&kept);
+  EXPECT_EQ(kept.graphNodes(), 8u);
+  EXPECT_EQ(kept.loops().size(), loop.loops().size());
   o.place_reuse_m = 0.0;
   LoopCloser all(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
   hover(&all);
   EXPECT_EQ(all.describedKeyframes(), 8u);
+}
+
+TEST(LoopCloser, LoopsSolvedInTheNewestNodesStillRemoveTheDriftOnceFlushed) {
+  // Every loop solved in the newest 20 graph nodes only (full_solve_sigmas so large that none is "far"), then the
+  // whole graph once at the end of the stream: the drift is removed as well as by whole solves.
+  const test::WallScene scene;
+  const Flight f = fly(0.0002, Vec3(0.004, 0.002, 0.001));
+  LoopOptions o;
+  o.enabled = true;
+  o.loop_pnp_sigma_scale = 0.0;
+  o.consistent_loop_sigmas = 0.0;
+  o.solve_window_nodes = 20;
+  o.full_solve_sigmas = 1e6;
+  LoopCloser loop(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
+  double last_error = 0.0;
+  closeLoops(f, o, &loop, &last_error);
+  const std::size_t solves = loop.stats().graph_solves;
+  EXPECT_EQ(solves, loop.loops().size());
+  loop.flush();
+  EXPECT_EQ(loop.stats().graph_solves, solves + 1);  // the whole graph, once
+  double rms = 0.0;
+  for (std::size_t k = 0; k < f.t.size(); ++k)
+    rms += ((loop.correctionAt(f.t[k]) * f.odometry[k]).p - f.truth[k].p).squaredNorm();
+  rms = std::sqrt(rms / f.t.size());
+  EXPECT_LT(rms, 0.35 * rmsDrift(f)) << rmsDrift(f) << " -> " << rms;
 }
 
 }  // namespace

@@ -135,5 +135,53 @@ TEST(PoseGraph, AWrongLoopEdgeIsDampedByTheRobustLoss) {
   EXPECT_LT(robust, 0.2 * plain);
 }
 
+TEST(PoseGraph, ASolveOfTheNewestNodesHoldsTheOlderOnes) {
+  const int n = 60;
+  const Circle c = makeCircle(n, 0.003, Vec3(0.004, -0.002, 0.001));
+  const std::size_t last = static_cast<std::size_t>(n);
+  auto build = [&]() {
+    PoseGraph g;
+    for (const Pose& p : c.odometry) g.addNode(p);
+    for (std::size_t k = 1; k < c.odometry.size(); ++k)
+      for (std::size_t i = (k >= 4 ? k - 4 : 0); i < k; ++i) g.addEdge(g.odometryEdge(i, k, 0.01, 1e-3));
+    g.addEdge(g.loopEdge(0, last, c.truth[0].inverse() * c.truth[last], 1e-3, 1e-4));
+    return g;
+  };
+  PoseGraph whole = build(), window = build();
+  ASSERT_TRUE(whole.optimise(PoseGraphOptions{}));
+  PoseGraphOptions o;
+  o.first_free_node = 40;
+  ASSERT_TRUE(window.optimise(o));
+  // The held nodes are exactly the odometry; the free ones take the loop's correction, bending 20 nodes instead of
+  // 60 (so the newest one is pulled as close, but its neighbours less smoothly).
+  for (std::size_t k = 0; k < o.first_free_node; ++k) EXPECT_EQ((window.pose(k).p - c.odometry[k].p).norm(), 0.0);
+  const double drift = (c.odometry[last].p - c.truth[last].p).norm();
+  EXPECT_LT((window.pose(last).p - c.truth[last].p).norm(), 0.1 * drift);
+  EXPECT_GT((window.pose(40).p - c.odometry[40].p).norm(), 1e-4);
+  // Solved again as a whole, it reaches the whole solve (to the solver's tolerance: 0.1 mm against 0.3 m of drift).
+  ASSERT_TRUE(window.optimise(PoseGraphOptions{}));
+  for (std::size_t k = 0; k <= last; ++k) EXPECT_LT((window.pose(k).p - whole.pose(k).p).norm(), 1e-4) << k;
+}
+
+TEST(PoseGraph, RemovingTheNewestNodeRemovesItsEdges) {
+  const Circle c = makeCircle(10, 0.0, Vec3::Zero());
+  PoseGraph g;
+  for (std::size_t k = 0; k < c.odometry.size(); ++k) {
+    g.addNode(c.odometry[k]);
+    if (k > 0) g.addEdge(g.odometryEdge(k - 1, k, 0.01, 1e-3));
+  }
+  g.addEdge(g.loopEdge(0, 10, c.truth[0].inverse() * c.truth[10], 1e-3, 1e-4));
+  ASSERT_EQ(g.edges().size(), 11u);
+  g.removeLastNode();
+  EXPECT_EQ(g.size(), 10u);
+  ASSERT_EQ(g.edges().size(), 9u);
+  for (const PoseGraphEdge& e : g.edges()) EXPECT_LT(std::max(e.i, e.j), 10u);
+  // A node added now takes index 10 again, with edges to the remaining ones.
+  EXPECT_EQ(g.addNode(c.odometry[10]), 10u);
+  g.addEdge(g.odometryEdge(9, 10, 0.01, 1e-3));
+  EXPECT_TRUE(g.optimise(PoseGraphOptions{}));
+  EXPECT_LT((g.pose(10).p - c.odometry[10].p).norm(), 1e-9);
+}
+
 }  // namespace
 }  // namespace linnet

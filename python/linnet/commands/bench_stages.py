@@ -17,6 +17,25 @@ CPU_COLUMNS = {"points_cpu": 11, "lines_cpu": 12, "backend_cpu": 13}
 LOOP_CPU_COLUMN = 18
 #: Parts of the back-end (wall time on the estimator thread, which does nothing else): line steps and the solve.
 BACKEND_PARTS = {"line_backend": 14, "solver": 15}
+#: The process's resident set size after each frame, MB (runs written since it exists).
+RSS_COLUMN = 19
+
+
+def memory_growth(timing_csv: Path, after_s: float = 60.0) -> dict | None:
+    """Resident set size after `after_s` seconds of data and at the end of a run (from timing.csv), MB; None for
+    runs without the column or shorter than `after_s`."""
+    import numpy as np
+
+    data = np.atleast_2d(np.genfromtxt(timing_csv, delimiter=",", comments="#"))
+    if data.shape[1] <= RSS_COLUMN:
+        return None
+    t = (data[:, 0] - data[0, 0]) * 1e-9
+    if t[-1] <= after_s:
+        return None
+    early = float(data[np.searchsorted(t, after_s), RSS_COLUMN])
+    end = float(data[-1, RSS_COLUMN])
+    return {"after_s": after_s, "rss_after_mb": early, "end_s": float(t[-1]), "rss_end_mb": end,
+            "growth": end / early - 1.0 if early > 0 else float("nan")}
 
 
 def _stats(v) -> dict:
@@ -83,5 +102,9 @@ def COMMAND(dataset, duration, json_out):
         f = table["frame_cpu"]
         click.echo(f"frame CPU p95 / median: {f['p95_ms'] / max(f['median_ms'], 1e-9):.2f} (points, lines and "
                    "back-end threads; `make profile` for a per-function profile)")
+    memory = memory_growth(out / "timing.csv")
+    if memory is not None:
+        click.echo(f"resident set size: {memory['rss_after_mb']:.1f} MB after {memory['after_s']:g} s of data, "
+                   f"{memory['rss_end_mb']:.1f} MB after {memory['end_s']:.0f} s ({100 * memory['growth']:+.1f} %)")
     if json_out:
-        json_out.write_text(json.dumps({"stages": table, "summary": summary}, indent=2) + "\n")
+        json_out.write_text(json.dumps({"stages": table, "summary": summary, "memory": memory}, indent=2) + "\n")

@@ -189,7 +189,9 @@ def _print_summary(summary: dict, out: Path) -> None:
         rows.append(("cam1 correction (online)", f"{c['rotation_deg']:.4f} deg, {1e3 * c['translation_m']:.3f} mm"))
     if "loop_closure" in summary:
         lc = summary["loop_closure"]
-        rows.append(("loop closure", f"{lc['loops']} loops, largest correction {lc['largest_correction_m']:.3f} m"))
+        rows.append(("loop closure", f"{lc['loops']} loops, largest correction {lc['largest_correction_m']:.3f} m; "
+                                     f"{lc['keyframes']} keyframes, {lc['graph_nodes']} graph nodes, "
+                                     f"{lc['described']} described"))
     rows.append(("status", summary["status"]))
     for k, v in rows:
         table.add_row(k, v)

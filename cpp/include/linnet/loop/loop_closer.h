@@ -38,6 +38,14 @@ struct LoopEvent {
   double sigma_yaw_deg = 0.0;      // and its yaw sigma, deg
 };
 
+/// The loop closer's database and graph sizes (what its memory and its solves grow with).
+struct LoopStats {
+  std::size_t keyframes = 0;    // keyframes inserted
+  std::size_t graph_nodes = 0;  // of which kept as pose-graph nodes
+  std::size_t described = 0;    // of which keep a place description
+  std::size_t graph_solves = 0; // pose-graph solves (a loop the graph already agrees with needs none)
+};
+
 class LoopCloser {
  public:
   /// cam0 (kept by reference: it must outlive the loop closer), T_B_C0 and T_C1_C0 from the calibration.
@@ -62,26 +70,31 @@ class LoopCloser {
   /// The rig's extrinsics as the odometry now uses them (its online refinement, EstimatorOutput::T_B_R * T_B_C0);
   /// used for what follows: landmark depths and loop measurements.
   void setExtrinsics(const Pose& T_B_C0) { T_B_C0_ = T_B_C0; }
-  /// Inserts every queued keyframe (end of the stream).
+  /// Inserts every queued keyframe and solves the whole graph if loops were solved in the newest nodes only (end of
+  /// the stream).
   int flush();
   bool hasQueued() const { return !queued_.empty(); }
 
-  /// T_Wcorrected_Wodometry in force at time t: the correction of the last keyframe at or before t (identity before
-  /// the first keyframe).
+  /// T_Wcorrected_Wodometry in force at time t: the correction of the last pose-graph node at or before t (identity
+  /// before the first keyframe).
   Pose correctionAt(Timestamp t) const;
   /// The correction of the newest keyframe.
   Pose latestCorrection() const;
 
   const std::vector<LoopEvent>& loops() const { return loops_; }
-  std::size_t keyframes() const { return keyframes_.size(); }
+  /// Keyframes inserted so far.
+  std::size_t keyframes() const { return inserted_; }
+  /// Keyframes kept as pose-graph nodes (a revisit without a loop is not: options.cull_revisits).
+  std::size_t graphNodes() const { return keyframes_.size(); }
   /// Keyframes that keep a place description (a revisit of a described place keeps none: options.place_reuse_m).
   std::size_t describedKeyframes() const;
+  LoopStats stats() const;
 
  private:
   struct Keyframe {
     Timestamp t = 0;
     PlaceFeatures place;
-    double path_m = 0.0;  // odometry path length up to this keyframe
+    double path_m = 0.0;  // odometry path length up to this keyframe (every keyframe's, culled or not)
   };
   struct Queued {
     Timestamp t = 0;
@@ -96,16 +109,22 @@ class LoopCloser {
   int insertQueuedBefore(Timestamp limit);
   bool tryLoop(std::size_t new_index);
   bool placeDescribedBefore(std::size_t k) const;
+  PoseGraphOptions solveOptions() const;  // of a solve of the whole graph
 
   LoopOptions options_;
   const CameraModel& cam0_;
   Pose T_B_C0_, T_C1_C0_;
-  std::vector<Keyframe> keyframes_;
+  std::vector<Keyframe> keyframes_;  // the pose graph's nodes, in time order (index = node index)
   std::deque<Queued> queued_;
   PoseGraph graph_;
   std::vector<LoopEvent> loops_;
-  std::size_t last_loop_index_ = 0;
+  std::size_t inserted_ = 0;            // keyframes inserted
+  std::size_t solves_ = 0;              // pose-graph solves
+  bool local_solves_pending_ = false;   // loops were solved with older nodes held since the last whole solve
+  std::size_t last_loop_keyframe_ = 0;  // insertion count - 1 of the last keyframe that closed a loop
   bool any_loop_ = false;
+  double path_m_ = 0.0;                 // odometry path length up to the newest keyframe, m
+  Vec3 last_odometry_p_ = Vec3::Zero(); // the newest keyframe's odometry position
 };
 
 }  // namespace linnet

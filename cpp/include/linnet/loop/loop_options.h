@@ -19,9 +19,20 @@ struct LoopOptions {
                                        // place_reuse_deg of its view) keeps no description of its own, m (0: keep
                                        // all); bounds the database on long flights over the same space
   double place_reuse_deg = 10.0;       // deg (well inside max_view_angle_deg: the older one still verifies loops there)
+  bool cull_revisits = true;           // such a revisit that closes no loop is not kept as a pose-graph node either
+                                       // (its neighbours are linked directly; its frames take the previous node's
+                                       // correction): bounds the graph's memory and solve time on long flights
   double consistent_loop_sigmas = 1.0; // a loop within this many of its edge's sigmas of the corrected graph is added
                                        // without a new solve of the whole graph (0: always solve); the loop edges'
                                        // measured error is about 1.5 sigma RMS
+  int solve_window_nodes = 300;        // a loop within full_solve_sigmas solves only the newest this many graph
+                                       // nodes, the older ones held (0: always the whole graph); the whole graph is
+                                       // solved once more at the end of the stream. A solve of the whole graph
+                                       // costs more with every node: 175 ms for 1500 nodes on a 10 min flight
+  double full_solve_sigmas = 10.0;     // a loop farther than this many of its edge's sigmas from the corrected graph
+                                       // solves the whole graph (a large correction bends all of it). The loops of a
+                                       // 10 min figure-eight are within 5 (median 1.9): at 3, 1 in 10 was solved
+                                       // whole, 33 s of its 45 s of loop CPU
   // Geometric verification (place_matcher.h).
   int orb_patch_px = 31;               // ORB descriptor patch side, pixels
   int corners = 400;                   // FAST corners described per keyframe besides the tracked ones
@@ -74,8 +85,14 @@ struct LoopOptions {
     v("place_reuse_m", place_reuse_m, "a keyframe this close to an older described one keeps no description, m", 0.0,
       100.0);
     v("place_reuse_deg", place_reuse_deg, "and within this view angle of it, deg", 0.0, 180.0);
+    v("cull_revisits", cull_revisits, "such a revisit without a loop is not kept as a pose-graph node");
     v("consistent_loop_sigmas", consistent_loop_sigmas,
       "no graph solve for a loop within this many edge sigmas of the corrected graph (0: always)", 0.0, 100.0);
+    v("solve_window_nodes", solve_window_nodes,
+      "a loop within full_solve_sigmas solves only the newest this many graph nodes (0: the whole graph)", 0,
+      100000000);
+    v("full_solve_sigmas", full_solve_sigmas, "a loop farther than this many edge sigmas solves the whole graph", 0.0,
+      1e6);
     v("min_keyframes_between_loops", min_keyframes_between_loops, "keyframes after a loop before the next search",
       0, 100000);
     v("orb_patch_px", orb_patch_px, "ORB descriptor patch side, pixels", 7, 101);

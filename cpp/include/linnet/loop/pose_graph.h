@@ -33,6 +33,7 @@ struct PoseGraphEdge {
 struct PoseGraphOptions {
   double loop_huber = 0.0;  // Huber threshold of loop edges, in sigmas (0: no robust loss)
   int max_iterations = 30;
+  std::size_t first_free_node = 0;  // nodes before this one are held (0: all but node 0, which fixes the gauge)
 };
 
 class PoseGraph {
@@ -44,9 +45,12 @@ class PoseGraph {
   /// A loop edge from a measured relative pose T_Bi_Bj (node i older).
   PoseGraphEdge loopEdge(std::size_t i, std::size_t j, const Pose& T_Bi_Bj, double sigma_t, double sigma_yaw) const;
   void addEdge(const PoseGraphEdge& e);
+  /// Removes the newest node and its edges (all edges to it are its own: it is the newest).
+  void removeLastNode();
 
-  /// Optimises every node but node 0 (held: it fixes the gauge), starting from the current estimates. Returns
-  /// false if the solver failed (the estimates are then unchanged).
+  /// Optimises every node but node 0 (held: it fixes the gauge), or only the nodes from options.first_free_node on
+  /// (the older ones held), starting from the current estimates. Returns false if the solver failed (the estimates
+  /// are then unchanged).
   bool optimise(const PoseGraphOptions& options);
 
   std::size_t size() const { return nodes_.size(); }

@@ -49,6 +49,7 @@ struct RunSummary {
   double time_offset_s = 0.0;             // the last pose's camera-to-IMU time offset (camera stamp - capture), s
   bool loop_enabled = false;              // loop.enabled (and stereo)
   std::vector<LoopEvent> loops;           // loops closed
+  LoopStats loop_stats;                   // the loop closer's keyframes, graph nodes, descriptions and solves
   std::vector<std::string> warnings;      // accepted but worth knowing (the dataset's, and the runner's)
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;

@@ -56,6 +56,7 @@ struct FrameResult {
   double line_cpu_ms = 0.0;
   double backend_cpu_ms = 0.0;
   double loop_cpu_ms = 0.0;  // loop closer (keyframes only)
+  double rss_mb = 0.0;       // the process's resident set size after the frame, MB (memory growth on long runs)
 };
 
 class System {
@@ -89,6 +90,8 @@ class System {
   int droppedFrames() const { return dropped_.load(); }
   /// Loops closed so far (empty when config.loop is off); complete after finish().
   std::vector<LoopEvent> loops() const;
+  /// The loop closer's keyframe and graph counts (zeros when config.loop is off); complete after finish().
+  LoopStats loopStats() const;
   const Config& config() const { return config_; }
 
  private:
