@@ -78,16 +78,15 @@ class LoopCloser {
   /// T_Wcorrected_Wodometry in force at time t: the correction of the last pose-graph node at or before t (identity
   /// before the first keyframe).
   Pose correctionAt(Timestamp t) const;
-  /// The correction of the newest keyframe.
+  /// The correction of the newest pose-graph node (a culled revisit after it would have had the same).
   Pose latestCorrection() const;
 
   const std::vector<LoopEvent>& loops() const { return loops_; }
   /// Keyframes inserted so far.
   std::size_t keyframes() const { return inserted_; }
-  /// Keyframes kept as pose-graph nodes (a revisit without a loop is not: options.cull_revisits).
-  std::size_t graphNodes() const { return keyframes_.size(); }
   /// Keyframes that keep a place description (a revisit of a described place keeps none: options.place_reuse_m).
   std::size_t describedKeyframes() const;
+  /// Keyframes, pose-graph nodes (a revisit without a loop is none: options.cull_revisits), descriptions, solves.
   LoopStats stats() const;
 
  private:
