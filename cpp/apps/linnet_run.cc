@@ -102,9 +102,9 @@ int main(int argc, char** argv) {
       double largest = 0.0;
       for (const linnet::LoopEvent& e : r.loops) largest = std::max(largest, e.correction_m);
       std::printf("loop closure: %zu loops, largest correction %.3f m; %zu keyframes, %zu graph nodes, %zu described, "
-                  "%zu graph solves\n",
+                  "%zu graph solves, place descriptions %.1f MB\n",
                   r.loops.size(), largest, r.loop_stats.keyframes, r.loop_stats.graph_nodes, r.loop_stats.described,
-                  r.loop_stats.graph_solves);
+                  r.loop_stats.graph_solves, r.loop_stats.place_mb);
     }
     if (!out.empty()) linnet::writeRunOutputs(r, out);
     if (2 * r.frames_with_pose < r.processed_frames || r.processed_frames == 0) {

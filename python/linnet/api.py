@@ -174,7 +174,7 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
             "events": [{"t_new_s": 1e-9 * e["t_new_ns"], "t_old_s": 1e-9 * e["t_old_ns"], "inliers": e["inliers"],
                         "correction_m": e["correction_m"], "correction_yaw_deg": e["correction_yaw_deg"],
                         "T_old_new": e["T_old_new"].tolist(), "sigma_m": e["sigma_m"],
-                        "sigma_yaw_deg": e["sigma_yaw_deg"]}
+                        "sigma_yaw_deg": e["sigma_yaw_deg"], "method": e["method"]}
                        for e in loops]}
     gt = find_ground_truth(dataset) if dataset is not None else None
     traj = run.trajectory(True)

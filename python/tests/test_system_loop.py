@@ -47,7 +47,9 @@ def test_loops_csv_holds_each_loops_measured_relative_pose(loop_run):
     data, out, _ = loop_run
     events = json.loads((out / "summary.json").read_text())["loop_closure"]["events"]
     rows = np.genfromtxt(out / "loops.csv", delimiter=",", comments="#", ndmin=2)
-    assert rows.shape == (len(events), 14)
+    assert rows.shape == (len(events), 15)
+    methods = [line.rsplit(",", 1)[1].strip() for line in (out / "loops.csv").read_text().splitlines()[1:]]
+    assert methods == [e["method"] for e in events] and set(methods) <= {"descriptors", "guided", "lines"}
     gt = np.genfromtxt(data / "mav0" / "state_groundtruth_estimate0" / "data.csv", delimiter=",", comments="#")
 
     def pose(t_ns):

@@ -170,7 +170,14 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
 
 void LineLandmarks::archive(const LineLandmark& lm) {
   if (!lm.triangulated || !lm.has_extent) return;
-  map_[lm.id] = mapLineOf(lm, lm.left_window);
+  const auto at = std::lower_bound(map_.begin(), map_.end(), lm.id,
+                                   [](const MapLine& m, std::int64_t id) { return m.id < id; });
+  // Lines leave the window roughly in the order of their ids: the insertion is near the end.
+  if (at != map_.end() && at->id == lm.id) {
+    *at = mapLineOf(lm, lm.left_window);
+  } else {
+    map_.insert(at, mapLineOf(lm, lm.left_window));
+  }
 }
 
 MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineSighting>& sightings) const {
@@ -416,22 +423,32 @@ std::vector<MapLine> LineLandmarks::windowLines() const {
 }
 
 std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
-  std::map<std::int64_t, MapLine> all = map_;
+  std::map<std::int64_t, MapLine> window_lines;  // the window's lines replace the map's of the same id
   for (const auto& [id, lm] : landmarks_) {
     if (!lm.triangulated || !lm.has_extent) continue;
     if (window == nullptr || !options_.map_refine) {
-      all[id] = currentMapLine(id, lm);
+      window_lines[id] = currentMapLine(id, lm);
       continue;
     }
     // Its sightings that left the window, then those in it (as removeFrame will add them).
     std::vector<LineSighting> sightings = lm.left_window;
     for (const auto& [fid, o] : lm.obs)
       if (const WindowFrame* f = window->find(fid)) appendSightings(*f, o, &sightings);
-    all[id] = mapLineOf(lm, sightings);
+    window_lines[id] = mapLineOf(lm, sightings);
   }
   std::vector<MapLine> out;
-  out.reserve(all.size());
-  for (const auto& [id, m] : all) out.push_back(m);
+  out.reserve(map_.size() + window_lines.size());
+  auto w = window_lines.begin();
+  for (const MapLine& m : map_) {
+    for (; w != window_lines.end() && w->first < m.id; ++w) out.push_back(w->second);
+    if (w != window_lines.end() && w->first == m.id) {
+      out.push_back(w->second);
+      ++w;
+    } else {
+      out.push_back(m);
+    }
+  }
+  for (; w != window_lines.end(); ++w) out.push_back(w->second);
   return out;
 }
 

@@ -21,27 +21,6 @@ constexpr double kDegToRad = M_PI / 180.0;
 
 double wrapPi(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 
-// A keyframe's description as the database keeps it for the rest of the run: descriptor matrices and vectors at
-// their exact size (row-by-row push_back leaves up to twice the room), the tracked corners' copies that only
-// setPlaceDepths needed dropped.
-PlaceFeatures compacted(PlaceFeatures f) {
-  f.descriptors_3d = f.descriptors_3d.clone();
-  f.descriptors_2d = f.descriptors_2d.clone();
-  f.tracked_descriptors = cv::Mat();
-  f.tracked_ids = {};
-  f.tracked_stereo_p_C = {};
-  f.p_C.shrink_to_fit();
-  f.uv.shrink_to_fit();
-  f.line_ids.shrink_to_fit();
-  f.line_uv.shrink_to_fit();
-  f.line_desc.shrink_to_fit();
-  f.line_p_C.shrink_to_fit();
-  return f;
-}
-
-// False for a revisit's keyframe, whose description was dropped (placeDescribedBefore).
-bool described(const PlaceFeatures& f) { return !f.uv.empty() || !f.line_uv.empty(); }
-
 PlaceDescription placeDescription(const LoopOptions& o) {
   PlaceDescription pd;
   pd.patch_px = o.orb_patch_px;
@@ -138,14 +117,14 @@ bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
     graph_.addEdge(graph_.odometryEdge(i, k, options_.odometry_sigma_m + options_.odometry_sigma_per_m * length,
                                        options_.odometry_sigma_yaw_deg * kDegToRad));
   }
-  kf.place = compacted(std::move(place));
+  kf.place = storePlace(place);  // the database's copy; the new keyframe is matched at full precision
   keyframes_.push_back(std::move(kf));
   const bool too_soon =
       any_loop_ && inserted_ - 1 - last_loop_keyframe_ < static_cast<std::size_t>(options_.min_keyframes_between_loops);
-  const bool loop = !too_soon && tryLoop(k);
+  const bool loop = !too_soon && tryLoop(k, place);
   if (loop) last_loop_keyframe_ = inserted_ - 1;
   if (placeDescribedBefore(k)) {
-    keyframes_[k].place = PlaceFeatures{};
+    keyframes_[k].place = StoredPlace{};
     // Without a description and a loop edge, the revisit's node would only relay the odometry between its
     // neighbours: the graph links them directly instead (its frames take the previous node's correction).
     if (!loop && options_.cull_revisits) {
@@ -158,7 +137,7 @@ bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
 
 std::size_t LoopCloser::describedKeyframes() const {
   return static_cast<std::size_t>(
-      std::count_if(keyframes_.begin(), keyframes_.end(), [](const Keyframe& kf) { return described(kf.place); }));
+      std::count_if(keyframes_.begin(), keyframes_.end(), [](const Keyframe& kf) { return kf.place.described(); }));
 }
 
 LoopStats LoopCloser::stats() const {
@@ -167,6 +146,9 @@ LoopStats LoopCloser::stats() const {
   s.graph_nodes = keyframes_.size();
   s.described = describedKeyframes();
   s.graph_solves = solves_;
+  std::size_t bytes = 0;
+  for (const Keyframe& kf : keyframes_) bytes += kf.place.bytes();
+  s.place_mb = 1e-6 * static_cast<double>(bytes);
   return s;
 }
 
@@ -182,14 +164,14 @@ bool LoopCloser::placeDescribedBefore(std::size_t k) const {
   for (std::size_t j = 0; j < k; ++j) {
     const Keyframe& old = keyframes_[j];
     if (toSeconds(now.t - old.t) < options_.min_time_gap_s) break;
-    if (!described(old.place)) continue;
+    if (!old.place.described()) continue;
     const Pose Q = graph_.pose(j);
     if ((Q.p - P.p).norm() < options_.place_reuse_m && axis.dot(Q.R() * T_B_C0_.R().col(2)) > cos_max) return true;
   }
   return false;
 }
 
-bool LoopCloser::tryLoop(std::size_t k) {
+bool LoopCloser::tryLoop(std::size_t k, const PlaceFeatures& place) {
   const Keyframe& now = keyframes_[k];
   const Pose P_new = graph_.pose(k);
   const Vec3 axis_new = P_new.R() * T_B_C0_.R().col(2);
@@ -198,7 +180,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
   for (std::size_t j = 0; j < k; ++j) {
     const Keyframe& old = keyframes_[j];
     if (toSeconds(now.t - old.t) < options_.min_time_gap_s) break;  // keyframes are in time order
-    if (!described(old.place)) continue;  // a revisit without its own description
+    if (!old.place.described()) continue;  // a revisit without its own description
     const Pose P_old = graph_.pose(j);
     const double d = (P_new.p - P_old.p).norm();
     const double radius = options_.search_radius_m + options_.search_radius_per_m * (now.path_m - old.path_m);
@@ -227,7 +209,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
     // measured so far were).
     const Pose predicted = graph_.pose(j).inverse() * P_new;
     mo.prior_T_Cold_Cnew = T_B_C0_.inverse() * graph_.pose(j).inverse() * P_new * T_B_C0_;
-    const PlaceMatch m = matchPlaces(keyframes_[j].place, now.place, mo);
+    const PlaceMatch m = matchPlaces(expandPlace(keyframes_[j].place), place, mo);
     if (!m.ok) continue;
     const Pose T_Bj_Bk = T_B_C0_ * m.T_Cold_Cnew * T_B_C0_.inverse();
     const double radius =
@@ -269,6 +251,7 @@ bool LoopCloser::tryLoop(std::size_t k) {
     e.T_old_new = T_Bj_Bk;
     e.sigma_m = sigma_t;
     e.sigma_yaw_deg = sigma_yaw / kDegToRad;
+    e.method = m.method;
     const Pose after = graph_.pose(k);
     e.correction_m = (after.p - P_new.p).norm();
     e.correction_yaw_deg = std::abs(wrapPi(graph_.heading(k, after.R()) - graph_.heading(k, P_new.R()))) / kDegToRad;

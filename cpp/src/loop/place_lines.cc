@@ -154,6 +154,7 @@ void matchLinesGuided(const PlaceFeatures& a, const PlaceFeatures& b, const Pose
 PlaceMatch solveWithLines(const PlaceFeatures& a, const PlaceFeatures& b, const Pose& prior,
                           const PlaceMatchOptions& options) {
   PlaceMatch out;
+  out.method = PlaceMatchMethod::kLines;
   std::vector<Block> blocks;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;

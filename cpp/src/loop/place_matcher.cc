@@ -65,6 +65,7 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
       f.tracked_ids.push_back(p.id);
       f.tracked_descriptors.push_back(desc.row(k));
       f.tracked_stereo_p_C.push_back(X);
+      f.tracked_rows.push_back(static_cast<int>(f.uv.size()));
     } else if (!cam0.undistort(Vec2(kp.pt.x, kp.pt.y), &uv)) {
       continue;
     }
@@ -77,7 +78,9 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
 
 void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, PlaceFeatures* f) {
   f->p_C.clear();
+  f->rows_3d.clear();
   f->descriptors_3d = cv::Mat();
+  const bool rows = f->tracked_rows.size() == f->tracked_ids.size();
   const Pose T_C_W = T_W_C.inverse();
   for (std::size_t i = 0; i < f->tracked_ids.size(); ++i) {
     Vec3 X = f->tracked_stereo_p_C[i];
@@ -88,6 +91,7 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
     if (!X.allFinite()) continue;
     f->p_C.push_back(X);
     f->descriptors_3d.push_back(f->tracked_descriptors.row(static_cast<int>(i)));
+    if (rows) f->rows_3d.push_back(f->tracked_rows[i]);
   }
 }
 
@@ -334,6 +338,15 @@ void refineOnBothKeyframes(const PlaceFeatures& a, const PlaceFeatures& b, const
 
 }  // namespace
 
+const char* placeMatchMethodName(PlaceMatchMethod method) {
+  switch (method) {
+    case PlaceMatchMethod::kGuided: return "guided";
+    case PlaceMatchMethod::kLines: return "lines";
+    case PlaceMatchMethod::kDescriptors: break;
+  }
+  return "descriptors";
+}
+
 PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options) {
   PlaceMatch best;
   const bool guided = options.prior_T_Cold_Cnew.has_value() && options.guided_radius_px > 0.0;
@@ -344,8 +357,10 @@ PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf,
       backward_prior = options.prior_T_Cold_Cnew->inverse();
     }
     OneWay forward = solveOneWay(new_kf, old_kf, options, forward_prior);  // T_Cold_Cnew
+    const PlaceMatchMethod method = pass == 1 ? PlaceMatchMethod::kGuided : PlaceMatchMethod::kDescriptors;
     if (forward.match.ok) {
       if (options.two_way) refineOnBothKeyframes(new_kf, old_kf, options, &forward);
+      forward.match.method = method;
       return forward.match;
     }
     OneWay backward = solveOneWay(old_kf, new_kf, options, backward_prior);  // T_Cnew_Cold
@@ -357,6 +372,7 @@ PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf,
       best.inliers = std::max({best.inliers, r.inliers, m.inliers});
       continue;
     }
+    r.method = method;
     return place_detail::inverted(r);
   }
   if (guided && options.use_lines) {

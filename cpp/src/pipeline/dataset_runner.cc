@@ -278,14 +278,15 @@ namespace {
 void writeLoopsCsv(const std::string& path, const std::vector<LoopEvent>& loops) {
   std::string text =
       "#t_new [ns],t_old [ns],inliers,correction [m],correction_yaw [deg],x [m],y [m],z [m],qx,qy,qz,qw "
-      "(T_old_new: the new keyframe's body in the old one's, as measured),sigma [m],sigma_yaw [deg] (its edge's)\n";
+      "(T_old_new: the new keyframe's body in the old one's, as measured),sigma [m],sigma_yaw [deg] (its edge's),"
+      "method (descriptors / guided / lines: how it was verified)\n";
   for (const LoopEvent& e : loops) {
     const Quat q = e.T_old_new.q.normalized();
     text += std::to_string(e.t_new) + "," + std::to_string(e.t_old) + "," + std::to_string(e.inliers);
     for (const double v : {e.correction_m, e.correction_yaw_deg, e.T_old_new.p.x(), e.T_old_new.p.y(),
                            e.T_old_new.p.z(), q.x(), q.y(), q.z(), q.w(), e.sigma_m, e.sigma_yaw_deg})
       text.append(",").append(io::formatDouble(v));
-    text += "\n";
+    text.append(",").append(placeMatchMethodName(e.method)).append("\n");
   }
   writeTextFile(path, text);
 }

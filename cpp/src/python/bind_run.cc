@@ -58,10 +58,11 @@ void bindRun(py::module_& m) {
             d["graph_nodes"] = r.loop_stats.graph_nodes;
             d["described"] = r.loop_stats.described;
             d["graph_solves"] = r.loop_stats.graph_solves;
+            d["place_mb"] = r.loop_stats.place_mb;
             return d;
           },
           "the loop closer's counts: keyframes inserted, of which kept as pose-graph nodes and with a place "
-          "description, and its pose-graph solves")
+          "description, its pose-graph solves, and the place descriptions' memory (place_mb)")
       .def_property_readonly(
           "loops",
           [](const RunSummary& r) {
@@ -76,13 +77,14 @@ void bindRun(py::module_& m) {
               d["T_old_new"] = Eigen::Matrix4d(e.T_old_new.matrix());
               d["sigma_m"] = e.sigma_m;
               d["sigma_yaw_deg"] = e.sigma_yaw_deg;
+              d["method"] = placeMatchMethodName(e.method);
               out.append(d);
             }
             return out;
           },
           "loops closed: list of dicts (t_new_ns, t_old_ns, inliers, correction_m, correction_yaw_deg, T_old_new: the "
           "measured pose of the new keyframe's body in the old one's, 4 x 4, sigma_m, sigma_yaw_deg: its pose-graph "
-          "edge's sigmas)")
+          "edge's sigmas, method: descriptors, guided or lines, how it was verified)")
       .def("trajectory", [](const RunSummary& r, bool only_with_pose) { return resultsToArrays(r.results, only_with_pose); },
            py::arg("only_with_pose") = true)
       .def("map", [](const RunSummary& r) { return mapToDict(r.map_points, r.map_lines); },

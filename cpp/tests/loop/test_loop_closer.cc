@@ -141,6 +141,10 @@ TEST(LoopCloser, ARevisitOfADescribedPlaceKeepsNoDescription) {
   LoopCloser all(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
   hover(&all);
   EXPECT_EQ(all.describedKeyframes(), 8u);
+  // The database's memory follows the described keyframes: four times as many descriptions, about four times the MB.
+  EXPECT_GT(s.place_mb, 0.0);
+  EXPECT_GT(all.stats().place_mb, 3.0 * s.place_mb);
+  EXPECT_LT(all.stats().place_mb, 5.0 * s.place_mb);
 }
 
 TEST(LoopCloser, LoopsSolvedInTheNewestNodesStillRemoveTheDriftOnceFlushed) {

@@ -191,7 +191,7 @@ def _print_summary(summary: dict, out: Path) -> None:
         lc = summary["loop_closure"]
         rows.append(("loop closure", f"{lc['loops']} loops, largest correction {lc['largest_correction_m']:.3f} m; "
                                      f"{lc['keyframes']} keyframes, {lc['graph_nodes']} graph nodes, "
-                                     f"{lc['described']} described"))
+                                     f"{lc['described']} described ({lc['place_mb']:.1f} MB)"))
     rows.append(("status", summary["status"]))
     for k, v in rows:
         table.add_row(k, v)

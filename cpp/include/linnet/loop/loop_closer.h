@@ -24,6 +24,7 @@
 #include "linnet/core/types.h"
 #include "linnet/loop/loop_options.h"
 #include "linnet/loop/place_matcher.h"
+#include "linnet/loop/place_store.h"
 #include "linnet/loop/pose_graph.h"
 
 namespace linnet {
@@ -36,6 +37,7 @@ struct LoopEvent {
   Pose T_old_new;                  // the loop's measured relative pose: new keyframe's body in the old one's
   double sigma_m = 0.0;            // the loop edge's position sigma in the pose graph, m
   double sigma_yaw_deg = 0.0;      // and its yaw sigma, deg
+  PlaceMatchMethod method = PlaceMatchMethod::kDescriptors;  // how the loop was verified
 };
 
 /// The loop closer's database and graph sizes (what its memory and its solves grow with).
@@ -44,6 +46,7 @@ struct LoopStats {
   std::size_t graph_nodes = 0;  // of which kept as pose-graph nodes
   std::size_t described = 0;    // of which keep a place description
   std::size_t graph_solves = 0; // pose-graph solves (a loop the graph already agrees with needs none)
+  double place_mb = 0.0;        // heap memory of the place descriptions (StoredPlace::bytes), MB
 };
 
 class LoopCloser {
@@ -92,7 +95,7 @@ class LoopCloser {
  private:
   struct Keyframe {
     Timestamp t = 0;
-    PlaceFeatures place;
+    StoredPlace place;
     double path_m = 0.0;  // odometry path length up to this keyframe (every keyframe's, culled or not)
   };
   struct Queued {
@@ -106,7 +109,7 @@ class LoopCloser {
   /// Inserts the queued keyframes older than `limit`, with their corners at their last landmark positions; returns
   /// the loops closed.
   int insertQueuedBefore(Timestamp limit);
-  bool tryLoop(std::size_t new_index);
+  bool tryLoop(std::size_t new_index, const PlaceFeatures& place);  // place: the new keyframe's description
   bool placeDescribedBefore(std::size_t k) const;
   PoseGraphOptions solveOptions() const;  // of a solve of the whole graph
 

@@ -29,6 +29,8 @@ struct PlaceFeatures {
   std::vector<std::int64_t> tracked_ids;
   cv::Mat tracked_descriptors;
   std::vector<Vec3> tracked_stereo_p_C;
+  std::vector<int> tracked_rows;  // each tracked corner's row in uv / descriptors_2d (describePlace)
+  std::vector<int> rows_3d;       // each 3D corner's row in uv / descriptors_2d (setPlaceDepths; empty: unknown)
   std::vector<Vec2> uv;     // every described corner (tracked and detected): normalised, undistorted cam0 coordinates
   cv::Mat descriptors_2d;   // their ORB descriptors
   // The keyframe's tracked lines in cam0 (describePlaceLines): track id, normalised undistorted endpoints, LBD
@@ -73,8 +75,16 @@ struct PlaceMatchOptions {
   double line_max_angle_deg = 5.0;  // degrees
 };
 
+/// How a loop was verified: descriptor matching over the whole image, matching guided by the predicted relative pose,
+/// or points and lines together around that prediction (matchPlacesWithLines).
+enum class PlaceMatchMethod { kDescriptors, kGuided, kLines };
+
+/// "descriptors", "guided" or "lines" (loops.csv, the Python API).
+const char* placeMatchMethodName(PlaceMatchMethod method);
+
 struct PlaceMatch {
   bool ok = false;
+  PlaceMatchMethod method = PlaceMatchMethod::kDescriptors;
   int matches = 0;           // descriptor matches that passed the ratio test
   int inliers = 0;           // PnP RANSAC inliers
   int reverse_inliers = 0;   // with two_way: the other keyframe's 3D corners that agree with the PnP and were used
