@@ -64,6 +64,7 @@ std::size_t PoseGraph::addNode(const Pose& T_W_B) {
   const Mat3 R = T_W_B.R();
   n.axis = horizontalAxis(R);
   n.yaw = yawOf(R, n.axis);
+  n.odometry_yaw = n.yaw;
   n.R_tilt = rotZ(-n.yaw) * R;
   for (int k = 0; k < 3; ++k) n.p[k] = T_W_B.p[k];
   nodes_.push_back(n);
@@ -77,7 +78,7 @@ PoseGraphEdge PoseGraph::odometryEdge(std::size_t i, std::size_t j, double sigma
   e.i = i;
   e.j = j;
   e.t_ij = a.q.conjugate() * (b.p - a.p);
-  e.yaw_ij = wrapAngle(nodes_[j].yaw - nodes_[i].yaw);
+  e.yaw_ij = wrapAngle(nodes_[j].odometry_yaw - nodes_[i].odometry_yaw);
   e.sigma_t = sigma_t;
   e.sigma_yaw = sigma_yaw;
   return e;
@@ -89,8 +90,9 @@ PoseGraphEdge PoseGraph::loopEdge(std::size_t i, std::size_t j, const Pose& T_Bi
   e.i = i;
   e.j = j;
   e.t_ij = T_Bi_Bj.p;
-  // j's yaw if it had i's odometry attitude composed with the measured relative rotation.
-  e.yaw_ij = wrapAngle(yawOf(nodes_[i].odometry.R() * T_Bi_Bj.R(), nodes_[j].axis) - nodes_[i].yaw);
+  // j's yaw if it had i's odometry attitude composed with the measured relative rotation, against i's odometry yaw
+  // (both in the odometry's frame: i's estimate has moved by its correction since).
+  e.yaw_ij = wrapAngle(yawOf(nodes_[i].odometry.R() * T_Bi_Bj.R(), nodes_[j].axis) - nodes_[i].odometry_yaw);
   e.sigma_t = sigma_t;
   e.sigma_yaw = sigma_yaw;
   e.loop = true;

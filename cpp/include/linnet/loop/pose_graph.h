@@ -71,8 +71,9 @@ class PoseGraph {
     Pose odometry;
     int axis = 2;  // body axis whose heading is the node's yaw
     Mat3 R_tilt;   // the attitude without its heading: R = rotZ(yaw) * R_tilt
+    double odometry_yaw = 0.0;  // the odometry attitude's heading (edges measure against it, never the estimate)
     double p[3];
-    double yaw;
+    double yaw;    // the estimate's heading (moved by setEstimate and optimise)
   };
   std::vector<Node> nodes_;
   std::vector<PoseGraphEdge> edges_;
