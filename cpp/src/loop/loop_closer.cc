@@ -72,10 +72,10 @@ int LoopCloser::updateWindow(const std::vector<std::pair<Timestamp, Pose>>& wind
 
 int LoopCloser::flush() {
   const int loops = insertQueuedBefore(std::numeric_limits<Timestamp>::max());
-  if (local_solves_pending_) {
+  if (whole_solve_pending_) {
     ++solves_;
     graph_.optimise(solveOptions());
-    local_solves_pending_ = false;
+    whole_solve_pending_ = false;
   }
   return loops;
 }
@@ -239,10 +239,12 @@ bool LoopCloser::tryLoop(std::size_t k, const PlaceFeatures& place) {
     const auto window = static_cast<std::size_t>(options_.solve_window_nodes);
     if (window > 0 && graph_.size() > window && within(options_.full_solve_sigmas))
       po.first_free_node = graph_.size() - window;
-    if (!consistent) {
+    if (consistent) {
+      whole_solve_pending_ = true;  // its edge waits for the next solve
+    } else {
       ++solves_;
       if (!graph_.optimise(po)) continue;
-      local_solves_pending_ = po.first_free_node > 0;  // a whole solve covers the local ones before it
+      whole_solve_pending_ = po.first_free_node > 0;  // a whole solve covers every edge added before it
     }
     LoopEvent e;
     e.t_new = now.t;

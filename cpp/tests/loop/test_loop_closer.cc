@@ -172,5 +172,27 @@ TEST(LoopCloser, LoopsSolvedInTheNewestNodesStillRemoveTheDriftOnceFlushed) {
   EXPECT_LT(rms, 0.35 * rmsDrift(f)) << rmsDrift(f) << " -> " << rms;
 }
 
+TEST(LoopCloser, LoopsAddedWithoutASolveAreSolvedWhenFlushed) {
+  // Every loop taken as consistent with the graph (consistent_loop_sigmas so large that none is solved when found):
+  // their edges wait, and the end of the stream solves them, once.
+  const test::WallScene scene;
+  const Flight f = fly(0.0002, Vec3(0.004, 0.002, 0.001));
+  LoopOptions o;
+  o.enabled = true;
+  o.loop_pnp_sigma_scale = 0.0;
+  o.consistent_loop_sigmas = 1e6;
+  LoopCloser loop(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
+  double last_error = 0.0;
+  closeLoops(f, o, &loop, &last_error);
+  EXPECT_EQ(loop.stats().graph_solves, 0u);
+  loop.flush();
+  EXPECT_EQ(loop.stats().graph_solves, 1u);
+  double rms = 0.0;
+  for (std::size_t k = 0; k < f.t.size(); ++k)
+    rms += ((loop.correctionAt(f.t[k]) * f.odometry[k]).p - f.truth[k].p).squaredNorm();
+  rms = std::sqrt(rms / f.t.size());
+  EXPECT_LT(rms, 0.35 * rmsDrift(f)) << rmsDrift(f) << " -> " << rms;
+}
+
 }  // namespace
 }  // namespace linnet

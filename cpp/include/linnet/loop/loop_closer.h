@@ -122,7 +122,7 @@ class LoopCloser {
   std::vector<LoopEvent> loops_;
   std::size_t inserted_ = 0;            // keyframes inserted
   std::size_t solves_ = 0;              // pose-graph solves
-  bool local_solves_pending_ = false;   // loops were solved with older nodes held since the last whole solve
+  bool whole_solve_pending_ = false;    // loop edges were added since the last whole solve (held nodes, or none)
   std::size_t last_loop_keyframe_ = 0;  // insertion count - 1 of the last keyframe that closed a loop
   bool any_loop_ = false;
   double path_m_ = 0.0;                 // odometry path length up to the newest keyframe, m
