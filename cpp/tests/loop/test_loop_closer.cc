@@ -59,6 +59,14 @@ double rmsDrift(const Flight& f) {
   return std::sqrt(before / f.t.size());
 }
 
+// RMS position error of every keyframe with the loop closer's correction of its time.
+double correctedRms(const Flight& f, const LoopCloser& loop) {
+  double sum = 0.0;
+  for (std::size_t k = 0; k < f.t.size(); ++k)
+    sum += ((loop.correctionAt(f.t[k]) * f.odometry[k]).p - f.truth[k].p).squaredNorm();
+  return std::sqrt(sum / static_cast<double>(f.t.size()));
+}
+
 TEST(LoopCloser, ClosesTheLoopsOfAFlightThereAndBackAndRemovesTheDrift) {
   const test::WallScene scene;
   const Flight f = fly(0.0002, Vec3(0.004, 0.002, 0.001));  // 1.4 deg of yaw and 0.5 m over the flight
@@ -165,10 +173,7 @@ TEST(LoopCloser, LoopsSolvedInTheNewestNodesStillRemoveTheDriftOnceFlushed) {
   EXPECT_EQ(solves, loop.loops().size());
   loop.flush();
   EXPECT_EQ(loop.stats().graph_solves, solves + 1);  // the whole graph, once
-  double rms = 0.0;
-  for (std::size_t k = 0; k < f.t.size(); ++k)
-    rms += ((loop.correctionAt(f.t[k]) * f.odometry[k]).p - f.truth[k].p).squaredNorm();
-  rms = std::sqrt(rms / f.t.size());
+  const double rms = correctedRms(f, loop);
   EXPECT_LT(rms, 0.35 * rmsDrift(f)) << rmsDrift(f) << " -> " << rms;
 }
 
@@ -187,10 +192,7 @@ TEST(LoopCloser, LoopsAddedWithoutASolveAreSolvedWhenFlushed) {
   EXPECT_EQ(loop.stats().graph_solves, 0u);
   loop.flush();
   EXPECT_EQ(loop.stats().graph_solves, 1u);
-  double rms = 0.0;
-  for (std::size_t k = 0; k < f.t.size(); ++k)
-    rms += ((loop.correctionAt(f.t[k]) * f.odometry[k]).p - f.truth[k].p).squaredNorm();
-  rms = std::sqrt(rms / f.t.size());
+  const double rms = correctedRms(f, loop);
   EXPECT_LT(rms, 0.35 * rmsDrift(f)) << rmsDrift(f) << " -> " << rms;
 }
 
