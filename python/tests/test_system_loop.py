@@ -36,6 +36,9 @@ def test_loops_are_closed_and_reported(loop_run):
     for e in lc["events"]:
         assert e["t_new_s"] - e["t_old_s"] >= 20.0
         assert e["inliers"] >= min_inliers
+    # The database's counts: every graph node is a keyframe, every description a graph node's; its memory is reported.
+    assert lc["keyframes"] >= lc["graph_nodes"] >= lc["described"] >= 1
+    assert 0.0 < lc["place_mb"] < 0.1 * lc["described"]  # under 100 KB per description
     assert (out / "odometry.tum").is_file()
     assert s["reinitialisations"] == 0
 
