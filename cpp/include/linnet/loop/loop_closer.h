@@ -73,8 +73,8 @@ class LoopCloser {
   /// The rig's extrinsics as the odometry now uses them (its online refinement, EstimatorOutput::T_B_R * T_B_C0);
   /// used for what follows: landmark depths and loop measurements.
   void setExtrinsics(const Pose& T_B_C0) { T_B_C0_ = T_B_C0; }
-  /// Inserts every queued keyframe and solves the whole graph if loops were solved in the newest nodes only (end of
-  /// the stream).
+  /// Inserts every queued keyframe and solves the whole graph if loop edges were added since its last whole solve
+  /// (solved in the newest nodes only, or not solved: consistent with the graph) (end of the stream).
   int flush();
   bool hasQueued() const { return !queued_.empty(); }
 
