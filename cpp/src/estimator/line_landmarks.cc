@@ -423,32 +423,33 @@ std::vector<MapLine> LineLandmarks::windowLines() const {
 }
 
 std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
-  std::map<std::int64_t, MapLine> window_lines;  // the window's lines replace the map's of the same id
+  // The window's lines, by increasing id (landmarks_ is ordered by id); they replace the map's of the same id.
+  std::vector<MapLine> window_lines;
   for (const auto& [id, lm] : landmarks_) {
     if (!lm.triangulated || !lm.has_extent) continue;
     if (window == nullptr || !options_.map_refine) {
-      window_lines[id] = currentMapLine(id, lm);
+      window_lines.push_back(currentMapLine(id, lm));
       continue;
     }
     // Its sightings that left the window, then those in it (as removeFrame will add them).
     std::vector<LineSighting> sightings = lm.left_window;
     for (const auto& [fid, o] : lm.obs)
       if (const WindowFrame* f = window->find(fid)) appendSightings(*f, o, &sightings);
-    window_lines[id] = mapLineOf(lm, sightings);
+    window_lines.push_back(mapLineOf(lm, sightings));
   }
   std::vector<MapLine> out;
   out.reserve(map_.size() + window_lines.size());
   auto w = window_lines.begin();
   for (const MapLine& m : map_) {
-    for (; w != window_lines.end() && w->first < m.id; ++w) out.push_back(w->second);
-    if (w != window_lines.end() && w->first == m.id) {
-      out.push_back(w->second);
+    for (; w != window_lines.end() && w->id < m.id; ++w) out.push_back(*w);
+    if (w != window_lines.end() && w->id == m.id) {
+      out.push_back(*w);
       ++w;
     } else {
       out.push_back(m);
     }
   }
-  for (; w != window_lines.end(); ++w) out.push_back(w->second);
+  out.insert(out.end(), w, window_lines.end());
   return out;
 }
 
