@@ -45,37 +45,29 @@ def test_loops_are_closed_and_reported(loop_run):
 
 def test_loops_csv_holds_each_loops_measured_relative_pose(loop_run):
     import numpy as np
-    from scipy.spatial.transform import Rotation
+
+    from linnet import loop_eval
 
     data, out, _ = loop_run
     events = json.loads((out / "summary.json").read_text())["loop_closure"]["events"]
-    rows = np.genfromtxt(out / "loops.csv", delimiter=",", comments="#", ndmin=2)
-    assert rows.shape == (len(events), 15)
-    methods = [line.rsplit(",", 1)[1].strip() for line in (out / "loops.csv").read_text().splitlines()[1:]]
-    assert methods == [e["method"] for e in events] and set(methods) <= {"descriptors", "guided", "lines"}
-    gt = np.genfromtxt(data / "mav0" / "state_groundtruth_estimate0" / "data.csv", delimiter=",", comments="#")
-
-    def pose(t_ns):
-        g = gt[np.argmin(np.abs(gt[:, 0] - t_ns))]
-        return Rotation.from_quat([g[5], g[6], g[7], g[4]]), g[1:4]
-
-    errors = []
-    for row, event in zip(rows, events):
-        assert abs(1e-9 * row[0] - event["t_new_s"]) < 1e-6 and abs(1e-9 * row[1] - event["t_old_s"]) < 1e-6
-        assert row[2] == event["inliers"]
-        assert np.allclose(row[5:8], np.array(event["T_old_new"])[:3, 3], rtol=0, atol=1e-12)
+    loops = loop_eval.read_loops(out / "loops.csv")
+    assert len(loops) == len(events)
+    assert list(loops.methods) == [e["method"] for e in events]
+    assert set(loops.methods) <= {"descriptors", "guided", "lines"}
+    for k, event in enumerate(events):
+        assert abs(1e-9 * loops.t_new_ns[k] - event["t_new_s"]) < 1e-6
+        assert abs(1e-9 * loops.t_old_ns[k] - event["t_old_s"]) < 1e-6
+        assert loops.inliers[k] == event["inliers"]
+        assert np.allclose(loops.p[k], np.array(event["T_old_new"])[:3, 3], rtol=0, atol=1e-12)
         # The edge's sigmas: at least the configured floor (1 cm, 0.2 deg), as in summary.json.
-        assert row[12] == event["sigma_m"] and row[12] >= 0.01 and row[13] == event["sigma_yaw_deg"] >= 0.2
-        R_old, p_old = pose(row[1])
-        R_new, p_new = pose(row[0])
-        true_p = R_old.inv().apply(p_new - p_old)
-        true_R = R_old.inv() * R_new
-        errors.append(np.linalg.norm(row[5:8] - true_p))
-        # The weakest loops here (15-20 inliers) are off by up to about 11 cm and 2 deg when written; a frame
-        # convention error would be off by the loop's whole baseline (0.1-1 m) or more.
-        assert errors[-1] < 0.15, (row, true_p)
-        assert (true_R.inv() * Rotation.from_quat(row[8:12])).magnitude() < np.radians(3.0)
-    assert np.sqrt(np.mean(np.square(errors))) < 0.08, errors
+        assert loops.sigma_m[k] == event["sigma_m"] >= 0.01 and loops.sigma_yaw_deg[k] == event["sigma_yaw_deg"] >= 0.2
+    # Against the ground truth (`linnet eval-loops`): the weakest loops here (15-20 inliers) are off by up to about
+    # 11 cm and 2 deg when written; a frame convention error would be off by the loop's whole baseline (0.1-1 m).
+    report = loop_eval.evaluate_run_loops(out, data)
+    errors = [e["position_error_m"] for e in report["loops"]]
+    assert max(errors) < 0.15, report["worst"]
+    assert max(e["rotation_error_deg"] for e in report["loops"]) < 3.0, report["worst"]
+    assert report["groups"][0]["position_rmse_m"] < 0.08, errors
 
 
 def test_loop_corrected_trajectory_stays_accurate(loop_run):
