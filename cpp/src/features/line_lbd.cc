@@ -3,7 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <utility>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "linnet/core/error.h"
 
@@ -42,81 +48,148 @@ struct Weights {
   }
 };
 
-}  // namespace
+// Where computeLbdFloat samples a segment's support region: patch row q (0..kRows+1) lies at offset q - kHalf - 1
+// along the normal n, patch column c (0..ns+1) at (c - 0.5) * step along the direction d from the start s.
+struct Sampling {
+  int ns = 0;         // samples along the segment per row
+  int cols = 0;       // ns + 2: one more each side for the along-line gradient
+  float step = 0.f;   // pixels between samples
+  float sx = 0.f, sy = 0.f, nx = 0.f, ny = 0.f, x0 = 0.f, y0 = 0.f;  // step * d, n, s
+};
 
-std::array<float, kLbdFloats> computeLbdFloat(const cv::Mat& gray, const LbdOptions& options, const LineSegment& seg) {
-  static_assert(kRows == 63);
-  static const Weights kWeights;  // immutable tables, built once (not mutable state)
-  std::array<float, kLbdFloats> out{};
-  const double len = seg.length();
-  if (!(len > 1.0) || gray.cols < 3 || gray.rows < 3) return out;
-  const Vec2 d = seg.direction();
-  const Vec2 n(-d.y(), d.x());
-  const int ns = std::clamp(static_cast<int>(len), 2, options.max_samples);
-  const float step = static_cast<float>(len / ns);
-  const float dx = static_cast<float>(d.x()), dy = static_cast<float>(d.y());
-  const float nx = static_cast<float>(n.x()), ny = static_cast<float>(n.y());
-  const std::size_t stride = gray.step[0];
-  // 1. Resample the support region into a rectified patch by nearest neighbour: patch row q (0..kRows+1) lies at
-  //    offset q - kHalf - 1 along n, patch column c (0..ns+1) at (c - 0.5) * step along d from s. The walk is in
-  //    16.16 fixed point; rows leaving the image are clamped to the border.
-  // 2. Gradients in the patch frame are the projections LBD needs: g_perp = P(q+1, c) - P(q-1, c) (along n),
-  //    g_L = (P(q, c+1) - P(q, c-1)) / step (along d); rows sum them split by sign (branch-free, vectorisable).
-  constexpr int kPatchRows = kRows + 2;
-  const int cols = ns + 2;
-  std::uint8_t patch[kPatchRows][1024 + 2];
+constexpr int kPatchRows = kRows + 2;
+constexpr int kPatchSlack = 16;  // bytes past each patch row that rowSad may read (masked out)
+using Patch = std::uint8_t[kPatchRows][1024 + 2 + kPatchSlack];
+using RowSums = std::array<std::array<float, 4>, kRows>;
+
+// Patch row q, nearest pixel. Rows inside the image are walked in 16.16 fixed point; rows leaving it are clamped to
+// the border. `fast`: the inside rows' pixel offsets four at a time (SSE2; the same integers, so the same pixels).
+void sampleRow(const cv::Mat& gray, const Sampling& g, int q, bool fast, std::uint8_t* row) {
   const int max_xi = gray.cols - 1, max_yi = gray.rows - 1;
-  const std::ptrdiff_t sstride = static_cast<std::ptrdiff_t>(stride);
-  const float sx = step * dx, sy = step * dy;
-  for (int q = 0; q < kPatchRows; ++q) {
-    const float off = static_cast<float>(q - kHalf - 1);
-    const float bx = static_cast<float>(seg.s.x()) + off * nx - 0.5f * sx;
-    const float by = static_cast<float>(seg.s.y()) + off * ny - 0.5f * sy;
-    const float ex = bx + static_cast<float>(cols - 1) * sx, ey = by + static_cast<float>(cols - 1) * sy;
-    const bool inside = std::min(bx, ex) >= 0.f && std::min(by, ey) >= 0.f &&
-                        std::max(bx, ex) <= static_cast<float>(max_xi) && std::max(by, ey) <= static_cast<float>(max_yi);
-    std::uint8_t* row = patch[q];
-    if (inside) {
-      std::int32_t fx = static_cast<std::int32_t>((bx + 0.5f) * 65536.f);
-      std::int32_t fy = static_cast<std::int32_t>((by + 0.5f) * 65536.f);
-      const std::int32_t fsx = static_cast<std::int32_t>(sx * 65536.f), fsy = static_cast<std::int32_t>(sy * 65536.f);
-      for (int c = 0; c < cols; ++c, fx += fsx, fy += fsy)
-        row[c] = gray.data[static_cast<std::ptrdiff_t>(fy >> 16) * sstride + (fx >> 16)];
-    } else {
-      for (int c = 0; c < cols; ++c) {
-        const int xi = std::clamp(static_cast<int>(std::floor(bx + static_cast<float>(c) * sx + 0.5f)), 0, max_xi);
-        const int yi = std::clamp(static_cast<int>(std::floor(by + static_cast<float>(c) * sy + 0.5f)), 0, max_yi);
-        row[c] = gray.data[static_cast<std::ptrdiff_t>(yi) * sstride + xi];
-      }
+  const std::ptrdiff_t stride = static_cast<std::ptrdiff_t>(gray.step[0]);
+  const float off = static_cast<float>(q - kHalf - 1);
+  const float bx = g.x0 + off * g.nx - 0.5f * g.sx;
+  const float by = g.y0 + off * g.ny - 0.5f * g.sy;
+  const float ex = bx + static_cast<float>(g.cols - 1) * g.sx, ey = by + static_cast<float>(g.cols - 1) * g.sy;
+  const bool inside = std::min(bx, ex) >= 0.f && std::min(by, ey) >= 0.f &&
+                      std::max(bx, ex) <= static_cast<float>(max_xi) && std::max(by, ey) <= static_cast<float>(max_yi);
+  if (!inside) {
+    for (int c = 0; c < g.cols; ++c) {
+      const int xi = std::clamp(static_cast<int>(std::floor(bx + static_cast<float>(c) * g.sx + 0.5f)), 0, max_xi);
+      const int yi = std::clamp(static_cast<int>(std::floor(by + static_cast<float>(c) * g.sy + 0.5f)), 0, max_yi);
+      row[c] = gray.data[static_cast<std::ptrdiff_t>(yi) * stride + xi];
     }
+    return;
   }
-  // Row sums: (g_perp > 0, -g_perp < 0, g_L > 0, -g_L < 0), each a mean over the row's samples, times the global weight.
-  std::array<std::array<float, 4>, kRows> rows{};
-  const float inv_step = 1.f / step;
+  std::int32_t fx = static_cast<std::int32_t>((bx + 0.5f) * 65536.f);
+  std::int32_t fy = static_cast<std::int32_t>((by + 0.5f) * 65536.f);
+  const std::int32_t fsx = static_cast<std::int32_t>(g.sx * 65536.f), fsy = static_cast<std::int32_t>(g.sy * 65536.f);
+  int c = 0;
+#if defined(__SSE2__)
+  // x = fx >> 16 and y = fy >> 16 (both >= 0 inside the image) packed as 16-bit halves of a lane, so that one
+  // multiply-add gives x + y * stride (coordinates and the row step below 2^15).
+  if (fast && stride < 32768 && gray.cols < 32768 && gray.rows < 32768) {
+    alignas(16) std::int32_t offsets[4];
+    __m128i vx = _mm_setr_epi32(fx, fx + fsx, fx + 2 * fsx, fx + 3 * fsx);
+    __m128i vy = _mm_setr_epi32(fy, fy + fsy, fy + 2 * fsy, fy + 3 * fsy);
+    const __m128i step_x = _mm_set1_epi32(4 * fsx), step_y = _mm_set1_epi32(4 * fsy);
+    const __m128i high = _mm_set1_epi32(static_cast<std::int32_t>(0xFFFF0000u));
+    const __m128i weights = _mm_set1_epi32(static_cast<std::int32_t>((static_cast<std::uint32_t>(stride) << 16) | 1u));
+    for (; c + 4 <= g.cols; c += 4) {
+      const __m128i xy = _mm_or_si128(_mm_srli_epi32(vx, 16), _mm_and_si128(vy, high));
+      _mm_store_si128(reinterpret_cast<__m128i*>(offsets), _mm_madd_epi16(xy, weights));
+      row[c] = gray.data[offsets[0]];
+      row[c + 1] = gray.data[offsets[1]];
+      row[c + 2] = gray.data[offsets[2]];
+      row[c + 3] = gray.data[offsets[3]];
+      vx = _mm_add_epi32(vx, step_x);
+      vy = _mm_add_epi32(vy, step_y);
+    }
+    fx += c * fsx;
+    fy += c * fsy;
+  }
+#endif
+  for (; c < g.cols; ++c, fx += fsx, fy += fsy)
+    row[c] = gray.data[static_cast<std::ptrdiff_t>(fy >> 16) * stride + (fx >> 16)];
+}
+
+// Sum over i < n of |a[i] - b[i]|. With SSE2, 16 bytes at a time (PSADBW), reading up to 15 bytes past a + n and
+// b + n (masked out).
+std::int32_t rowSad(const std::uint8_t* a, const std::uint8_t* b, int n) {
+  std::int32_t total = 0;
+  int i = 0;
+#if defined(__SSE2__)
+  static const std::array<std::uint8_t, 32> kTailMask = [] {  // 16 x 0xFF, then 16 x 0
+    std::array<std::uint8_t, 32> m{};
+    for (int k = 0; k < 16; ++k) m[k] = 0xFF;
+    return m;
+  }();
+  __m128i acc = _mm_setzero_si128();
+  for (; i + 16 <= n; i += 16)
+    acc = _mm_add_epi64(acc, _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i)),
+                                          _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + i))));
+  if (i < n) {  // the first n - i lanes
+    const __m128i mask = _mm_loadu_si128(reinterpret_cast<const __m128i*>(kTailMask.data() + 16 - (n - i)));
+    const __m128i va = _mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i)), mask);
+    const __m128i vb = _mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(b + i)), mask);
+    acc = _mm_add_epi64(acc, _mm_sad_epu8(va, vb));
+    i = n;
+  }
+  total = _mm_cvtsi128_si32(acc) + _mm_cvtsi128_si32(_mm_unpackhi_epi64(acc, acc));
+#endif
+  for (; i < n; ++i) total += std::abs(static_cast<std::int32_t>(a[i]) - static_cast<std::int32_t>(b[i]));
+  return total;
+}
+
+// Gradients in the patch frame are the projections LBD needs: g_perp = P(q+1, c) - P(q-1, c) (along n),
+// g_L = (P(q, c+1) - P(q, c-1)) / step (along d). Each row sums (g_perp > 0, -g_perp < 0, g_L > 0, -g_L < 0), as a
+// mean over its samples times the global weight. `fast`: the sums split by sign through
+// sum(max(g, 0)) = (sum|g| + sum g) / 2 and sum(max(-g, 0)) = (sum|g| - sum g) / 2, exact in integers: sum g is a
+// difference of two row sums (g_perp) or telescopes to four pixels (g_L), sum|g| a sum of absolute differences of two
+// byte rows.
+void rowSums(const Patch& patch, const Sampling& g, bool fast, const Weights& weights, RowSums* rows) {
+  const int ns = g.ns;
+  const float inv_step = 1.f / g.step;
   for (int r = 0; r < kRows; ++r) {
     const std::uint8_t* up = patch[r];
     const std::uint8_t* mid = patch[r + 1];
     const std::uint8_t* down = patch[r + 2];
     std::int32_t b0 = 0, b1 = 0, b2 = 0, b3 = 0;
-    for (int c = 1; c <= ns; ++c) {
-      const std::int32_t gp = static_cast<std::int32_t>(down[c]) - static_cast<std::int32_t>(up[c]);
-      const std::int32_t gl = static_cast<std::int32_t>(mid[c + 1]) - static_cast<std::int32_t>(mid[c - 1]);
-      b0 += std::max(gp, 0);
-      b1 += std::max(-gp, 0);
-      b2 += std::max(gl, 0);
-      b3 += std::max(-gl, 0);
+    if (fast) {
+      std::int32_t sum_p = 0;
+      for (int c = 1; c <= ns; ++c) sum_p += static_cast<std::int32_t>(down[c]) - static_cast<std::int32_t>(up[c]);
+      const std::int32_t sum_l = static_cast<std::int32_t>(mid[ns + 1]) + mid[ns] - mid[1] - mid[0];
+      const std::int32_t abs_p = rowSad(down + 1, up + 1, ns), abs_l = rowSad(mid + 2, mid, ns);
+      b0 = (abs_p + sum_p) / 2;
+      b1 = (abs_p - sum_p) / 2;
+      b2 = (abs_l + sum_l) / 2;
+      b3 = (abs_l - sum_l) / 2;
+    } else {
+      for (int c = 1; c <= ns; ++c) {
+        const std::int32_t gp = static_cast<std::int32_t>(down[c]) - static_cast<std::int32_t>(up[c]);
+        const std::int32_t gl = static_cast<std::int32_t>(mid[c + 1]) - static_cast<std::int32_t>(mid[c - 1]);
+        b0 += std::max(gp, 0);
+        b1 += std::max(-gp, 0);
+        b2 += std::max(gl, 0);
+        b3 += std::max(-gl, 0);
+      }
     }
-    const float w = kWeights.global[r] / static_cast<float>(ns);
-    rows[r] = {static_cast<float>(b0) * w, static_cast<float>(b1) * w, static_cast<float>(b2) * w * inv_step,
-               static_cast<float>(b3) * w * inv_step};
+    const float w = weights.global[r] / static_cast<float>(ns);
+    (*rows)[r] = {static_cast<float>(b0) * w, static_cast<float>(b1) * w, static_cast<float>(b2) * w * inv_step,
+                  static_cast<float>(b3) * w * inv_step};
   }
+}
+
+// The 72 floats from the row sums: band means and deviations, normalised, clamped and renormalised.
+std::array<float, kLbdFloats> bandsOf(const RowSums& rows, const LbdOptions& options, const Weights& weights) {
+  std::array<float, kLbdFloats> out{};
   // Band descriptors: weighted mean and standard deviation over the rows of bands j-1..j+1.
   for (int j = 0; j < kLbdBands; ++j) {
     const int r0 = std::max(0, (j - 1) * kLbdBandWidth), r1 = std::min(kRows, (j + 2) * kLbdBandWidth);
     float mean[4] = {0, 0, 0, 0}, sq[4] = {0, 0, 0, 0};
     const int cnt = r1 - r0;
     for (int r = r0; r < r1; ++r) {
-      const float wl = kWeights.local[j][r];
+      const float wl = weights.local[j][r];
       for (int c = 0; c < 4; ++c) {
         const float v = wl * rows[r][c];
         mean[c] += v;
@@ -153,6 +226,41 @@ std::array<float, kLbdFloats> computeLbdFloat(const cv::Mat& gray, const LbdOpti
   const float inv = 1.f / std::sqrt(total);
   for (float& v : out) v *= inv;
   return out;
+}
+
+std::array<float, kLbdFloats> lbdFloat(const cv::Mat& gray, const LbdOptions& options, const LineSegment& seg,
+                                       bool fast) {
+  static_assert(kRows == 63);
+  static const Weights kWeights;  // immutable tables, built once (not mutable state)
+  const double len = seg.length();
+  if (!(len > 1.0) || gray.cols < 3 || gray.rows < 3) return {};
+  const Vec2 d = seg.direction();
+  Sampling g;
+  g.ns = std::clamp(static_cast<int>(len), 2, options.max_samples);
+  g.cols = g.ns + 2;
+  g.step = static_cast<float>(len / g.ns);
+  g.sx = g.step * static_cast<float>(d.x());
+  g.sy = g.step * static_cast<float>(d.y());
+  g.nx = static_cast<float>(-d.y());
+  g.ny = static_cast<float>(d.x());
+  g.x0 = static_cast<float>(seg.s.x());
+  g.y0 = static_cast<float>(seg.s.y());
+  Patch patch;
+  for (int q = 0; q < kPatchRows; ++q) sampleRow(gray, g, q, fast, patch[q]);
+  RowSums rows;
+  rowSums(patch, g, fast, kWeights, &rows);
+  return bandsOf(rows, options, kWeights);
+}
+
+}  // namespace
+
+std::array<float, kLbdFloats> computeLbdFloat(const cv::Mat& gray, const LbdOptions& options, const LineSegment& seg) {
+  return lbdFloat(gray, options, seg, /*fast=*/true);
+}
+
+std::array<float, kLbdFloats> computeLbdFloatPlain(const cv::Mat& gray, const LbdOptions& options,
+                                                   const LineSegment& seg) {
+  return lbdFloat(gray, options, seg, /*fast=*/false);
 }
 
 LbdDescriptor binarizeLbd(const std::array<float, kLbdFloats>& f) {

@@ -1,7 +1,12 @@
 // LBD descriptor: matching by Hamming distance alone under image shift, rotation and brightness change.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
 #include <numbers>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
 
 #include "features/test_line_scene.h"
 #include "linnet/core/error.h"
@@ -121,6 +126,36 @@ TEST(Lbd, DescriptorBasics) {
   EXPECT_EQ(hammingDistance(binarizeLbd(f), binarizeLbd(f)), 0);
   std::vector<LbdDescriptor> d;
   EXPECT_THROW(computeLbd(cv::Mat(5, 5, CV_32F), LbdOptions{}, {s}, &d), UsageError);
+}
+
+TEST(Lbd, FastKernelEqualsThePlainOneBitForBit) {
+  // A textured image (noise, gradients and edges) and segments of every length and direction, inside, crossing and
+  // outside the border, with the sample counts the options allow around the SIMD widths.
+  cv::Mat img(240, 320, CV_8UC1);
+  cv::RNG rng(7);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(img, img, cv::Size(5, 5), 1.5);
+  cv::rectangle(img, cv::Point(60, 40), cv::Point(200, 150), cv::Scalar(250), 3);
+  std::mt19937 gen(3);
+  std::uniform_real_distribution<double> x(-60.0, 380.0), y(-60.0, 300.0), len(0.5, 400.0), ang(-M_PI, M_PI);
+  int compared = 0, nonzero = 0;
+  for (int max_samples : {4, 15, 16, 17, 33, 1024}) {
+    LbdOptions o;
+    o.max_samples = max_samples;
+    for (int k = 0; k < 400; ++k) {
+      LineSegment s;
+      s.s = Vec2(x(gen), y(gen));
+      const double a = ang(gen), l = len(gen);
+      s.e = s.s + l * Vec2(std::cos(a), std::sin(a));
+      const auto fast = computeLbdFloat(img, o, s), plain = computeLbdFloatPlain(img, o, s);
+      ASSERT_EQ(0, std::memcmp(fast.data(), plain.data(), sizeof(float) * fast.size()))
+          << "max_samples " << max_samples << ", segment " << s.s.transpose() << " -> " << s.e.transpose();
+      ++compared;
+      nonzero += fast[0] != 0.0f || fast[4] != 0.0f;
+    }
+  }
+  EXPECT_EQ(compared, 2400);
+  EXPECT_GT(nonzero, 1200);  // most segments are described (not the zero descriptor of a flat or tiny region)
 }
 
 }  // namespace

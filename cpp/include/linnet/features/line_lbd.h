@@ -35,6 +35,10 @@ struct LbdOptions {
 /// The 72-float LBD of one segment on an 8-bit grey image (unit norm; zeros if the region holds no gradient).
 std::array<float, kLbdFloats> computeLbdFloat(const cv::Mat& gray, const LbdOptions& options, const LineSegment& seg);
 
+/// The same descriptor without SIMD: the plain reference computeLbdFloat is held to, bit for bit (tests).
+std::array<float, kLbdFloats> computeLbdFloatPlain(const cv::Mat& gray, const LbdOptions& options,
+                                                   const LineSegment& seg);
+
 /// Binary form of a float LBD.
 LbdDescriptor binarizeLbd(const std::array<float, kLbdFloats>& f);
 
