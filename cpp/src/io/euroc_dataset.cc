@@ -4,6 +4,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <memory>
 #include <string_view>
 #include <unordered_set>
 #include <vector>
@@ -318,19 +320,22 @@ cv::Mat EurocDataset::loadImage(const std::string& path) {
   if (!fs::is_regular_file(path, ec)) io::failInput(path, 0, "image file not found");
   // The whole file in one read, then decoded from memory: cv::imread's decoder pulls the file through small
   // buffered reads, whose system calls cost as much as the decoding of an uncompressed PNG.
-  std::vector<unsigned char> bytes;
+  // The buffer is left uninitialised for the read to fill (a vector would first zero every byte of every image).
+  std::unique_ptr<unsigned char[]> bytes;
+  std::streamoff size = -1;
   {
     std::ifstream file(path, std::ios::binary | std::ios::ate);
-    const std::streamoff size = file ? static_cast<std::streamoff>(file.tellg()) : -1;
+    size = file ? static_cast<std::streamoff>(file.tellg()) : -1;
     if (size < 0) io::failInput(path, 0, "cannot read image file");
     if (size == 0) io::failInput(path, 0, "cannot decode image (empty file)");
-    bytes.resize(static_cast<std::size_t>(size));
+    if (size > std::numeric_limits<int>::max()) io::failInput(path, 0, "image file too large");
+    bytes.reset(new unsigned char[static_cast<std::size_t>(size)]);
     file.seekg(0);
-    if (!file.read(reinterpret_cast<char*>(bytes.data()), size)) io::failInput(path, 0, "cannot read image file");
+    if (!file.read(reinterpret_cast<char*>(bytes.get()), size)) io::failInput(path, 0, "cannot read image file");
   }
   cv::Mat img;
   try {
-    img = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    img = cv::imdecode(cv::Mat(1, static_cast<int>(size), CV_8UC1, bytes.get()), cv::IMREAD_GRAYSCALE);
   } catch (const cv::Exception& e) {
     io::failInput(path, 0, std::string("cannot decode image: ") + e.what());
   }
