@@ -13,7 +13,8 @@ import numpy as np
 
 from linnet.evaluation import ErrorResult, Trajectory
 
-__all__ = ["PlotOptions", "plot_top_view", "plot_error_over_time", "plot_xyz", "plot_all", "plot_ape"]
+__all__ = ["PlotOptions", "plot_top_view", "plot_error_over_time", "plot_xyz", "plot_all", "plot_ape",
+           "plot_loop_errors"]
 
 
 @dataclass
@@ -211,4 +212,35 @@ def plot_imu_spectra(models: dict, path, options: Optional[PlotOptions] = None) 
     axes[0][0].set_ylabel("PSD [(rad/s)$^2$/Hz]")
     axes[1][0].set_ylabel("PSD [(m/s$^2$)$^2$/Hz]")
     axes[0][0].legend(fontsize=7)
+    return _save(fig, path)
+
+
+def plot_loop_errors(report: dict, path, options: Optional[PlotOptions] = None) -> Path:
+    """Loop closures against the ground truth (``linnet.loop_eval.evaluate_run_loops``' report): each loop's position
+    error over its PnP inliers, one colour per verification method, with its edge's sigma (x) and 3 sigmas (line)."""
+    options = options or PlotOptions()
+    fig = _figure(options)
+    ax = fig.subplots()
+    loops = report["loops"]
+    for j, method in enumerate(sorted({e["method"] for e in loops})):
+        mine = [e for e in loops if e["method"] == method]
+        inliers = np.array([e["inliers"] for e in mine], dtype=float)
+        ax.scatter(inliers, [1000.0 * e["position_error_m"] for e in mine], s=14, color=f"C{j}",
+                   label=f"{method} ({len(mine)})")
+        ax.scatter(inliers, [1000.0 * e["sigma_m"] for e in mine], s=10, marker="x", color=f"C{j}", alpha=0.5)
+    if loops:
+        n = np.array(sorted({e["inliers"] for e in loops}), dtype=float)
+        sigma = [np.median([3000.0 * e["sigma_m"] for e in loops if e["inliers"] == k]) for k in n]
+        ax.plot(n, sigma, color="0.4", lw=0.8, label="3 x median sigma")
+    ax.set_xlabel("PnP inliers")
+    ax.set_ylabel("position error [mm] (x: the edge's sigma)")
+    ax.set_yscale("log")
+    from matplotlib.ticker import FormatStrFormatter
+
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))  # 20, 50, not 2 x 10^1
+    ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
+    ax.grid(True, which="both", lw=0.3)
+    ax.set_title(f"{len(loops)} loops against the ground truth", fontsize=10)
+    if loops:
+        ax.legend(fontsize=8)
     return _save(fig, path)

@@ -141,9 +141,11 @@ def cli():
 
 def test_eval_loops_command_prints_the_summary_and_writes_json(run_dir, ground_truth, tmp_path):
     out = tmp_path / "out" / "loops.json"
+    png = tmp_path / "plots" / "loops.png"
     result = CliRunner().invoke(cli(), ["eval-loops", str(run_dir), str(ground_truth), "--worst", "2",
-                                        "--json", str(out)])
+                                        "--json", str(out), "--plot", str(png)])
     assert result.exit_code == 0, result.output
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
     for text in ("method", "lines", "< 20", "200.0 mm (10.0 sigma of 20.0 mm)", "largest position errors"):
         assert text in result.output, text
     report = json.loads(out.read_text())

@@ -63,7 +63,9 @@ def _print_report(report: dict) -> None:
               help="List this many loops with the largest position errors.")
 @click.option("--json", "json_file", type=OUTPUT_FILE, default=None,
               help="Write the summary and every loop's errors as JSON to this file.")
-def COMMAND(run_dir, ground_truth, t_max_diff, bands, worst, json_file):
+@click.option("--plot", "plot_file", type=OUTPUT_FILE, default=None,
+              help="Write a PNG of each loop's position error over its inliers, by method, to this file.")
+def COMMAND(run_dir, ground_truth, t_max_diff, bands, worst, json_file, plot_file):
     """Score RUN_DIR/loops.csv (from `linnet run` with loop closure) against GROUND_TRUTH: a trajectory file
     (EuRoC csv, TUM) or a dataset folder holding mav0/state_groundtruth_estimate0/data.csv.
 
@@ -83,6 +85,10 @@ def COMMAND(run_dir, ground_truth, t_max_diff, bands, worst, json_file):
         click.echo(f"note: {report['loops_file']} holds no loop")
     else:
         _print_report(report)
+    if plot_file is not None:
+        from linnet import plots
+
+        click.echo(f"plot: {plots.plot_loop_errors(report, plot_file)}")
     if json_file is not None:
         try:
             ev.write_json_file(json_file, report)
