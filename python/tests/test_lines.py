@@ -229,7 +229,7 @@ def test_lines_and_bench_commands(tmp_path):
     assert res.exit_code == 0, res.output
     opts = json.loads((tmp_path / "c.json").read_text())["options"]
     assert opts["detection.detector"] == "edlines" and opts["detection.downsample"] == 2.0
-    assert opts["detection.min_length_px"] == 30
+    assert opts["detection.parallel_edges"] is True and opts["detection.min_length_px"] == 30
     res = runner.invoke(cli, ["bench", "lines", str(micro), "--frames", "0:3", "--set", "detection.min_length_px"])
     assert res.exit_code != 0 and "KEY=VALUE" in res.output
     res = runner.invoke(cli, ["lines", str(micro), "--out", str(tmp_path / "y"), "--frames", "0:2", "--no-png",
@@ -239,9 +239,12 @@ def test_lines_and_bench_commands(tmp_path):
 
 def test_tracker_options():
     assert lines.tracker_options() == {}
-    assert lines.tracker_options("lsd") == {"detection.detector": "lsd", "detection.downsample": 1.0}
-    opts = lines.tracker_options("ed", ["detection.parallel_edges=false", "temporal.guided_px = 2.5"])
-    assert opts["detection.parallel_edges"] is False and opts["temporal.guided_px"] == 2.5
+    assert lines.tracker_options("lsd") == {"detection.detector": "lsd", "detection.downsample": 1.0,
+                                            "detection.parallel_edges": False}
+    # The half-size detectors come with the parallel-edge search, which recovers the thin bars' fused edges.
+    assert lines.tracker_options("fld")["detection.parallel_edges"] is True
+    opts = lines.tracker_options("ed", ["detection.parallel_edges=true", "temporal.guided_px = 2.5"])
+    assert opts["detection.parallel_edges"] is True and opts["temporal.guided_px"] == 2.5
     with pytest.raises(ValueError, match="hough"):
         lines.tracker_options("hough")
     with pytest.raises(ValueError, match="KEY=VALUE"):
