@@ -6,14 +6,8 @@ from pathlib import Path
 
 import click
 
-from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE
+from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE, DataError, write_json_report
 from linnet import evaluation as ev
-
-
-class EvalInputError(click.ClickException):
-    """Bad or incompatible input files: one line on stderr, exit code 1 (a data error)."""
-
-    exit_code = 1
 
 
 def _rpe_or_reason(est, gt, delta, align, t_max_diff, relation):
@@ -124,7 +118,7 @@ def eval_command(est, gt, align, t_max_diff, pose_relation, rpe_delta, rpe_relat
         gt_traj = ev.load_trajectory(gt)
         ape_res = ev.ape(est_traj, gt_traj, align=align, t_max_diff=t_max_diff, pose_relation=pose_relation)
     except ev.InputError as e:
-        raise EvalInputError(str(e)) from None
+        raise DataError(str(e)) from None
     rpe_res, rpe_reason = _rpe_or_reason(est_traj, gt_traj, rpe_delta, align, t_max_diff, rpe_relation)
     report = _report(est, gt, est_traj, gt_traj, ape_res, rpe_res, rpe_reason)
     report["notes"] = _orientation_notes(gt_traj, pose_relation, rpe_relation)
@@ -139,10 +133,7 @@ def eval_command(est, gt, align, t_max_diff, pose_relation, rpe_delta, rpe_relat
         report["plots"] = [str(p) for p in written]
         click.echo(f"plots: {', '.join(str(p) for p in written)}")
     if json_file is not None:
-        try:
-            ev.write_json_file(json_file, report)
-        except ev.InputError as e:
-            raise EvalInputError(str(e)) from None
+        write_json_report(json_file, report)
 
 
 COMMAND = eval_command

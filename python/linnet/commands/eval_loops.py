@@ -5,13 +5,7 @@ from pathlib import Path
 
 import click
 
-from linnet.commands.params import OUTPUT_FILE
-
-
-class EvalLoopsInputError(click.ClickException):
-    """Missing or malformed run / ground-truth files: one line on stderr, exit code 1 (a data error)."""
-
-    exit_code = 1
+from linnet.commands.params import OUTPUT_FILE, DataError, write_json_report
 
 
 def _bands(ctx, param, value: str) -> tuple:
@@ -80,7 +74,7 @@ def COMMAND(run_dir, ground_truth, t_max_diff, bands, worst, json_file, plot_fil
     try:
         report = loop_eval.evaluate_run_loops(run_dir, ground_truth, t_max_diff=t_max_diff, bands=bands, worst=worst)
     except ev.InputError as e:
-        raise EvalLoopsInputError(str(e)) from None
+        raise DataError(str(e)) from None
     if not report["loops"]:
         click.echo(f"note: {report['loops_file']} holds no loop")
     else:
@@ -90,7 +84,4 @@ def COMMAND(run_dir, ground_truth, t_max_diff, bands, worst, json_file, plot_fil
 
         click.echo(f"plot: {plots.plot_loop_errors(report, plot_file)}")
     if json_file is not None:
-        try:
-            ev.write_json_file(json_file, report)
-        except ev.InputError as e:
-            raise EvalLoopsInputError(str(e)) from None
+        write_json_report(json_file, report)

@@ -5,13 +5,7 @@ from pathlib import Path
 
 import click
 
-from linnet.commands.params import OUTPUT_FILE
-
-
-class EvalMapInputError(click.ClickException):
-    """Missing or malformed run / dataset files: one line on stderr, exit code 1 (a data error)."""
-
-    exit_code = 1
+from linnet.commands.params import OUTPUT_FILE, DataError, write_json_report
 
 
 def _fmt(value, spec: str) -> str:
@@ -67,13 +61,10 @@ def COMMAND(run_dir, dataset, min_observations, within_m, max_sigma_m, json_file
         report = map_eval.evaluate_run_map(run_dir, dataset, min_observations=min_observations, within_m=within_m,
                                            max_sigma_m=max_sigma_m)
     except ev.InputError as e:
-        raise EvalMapInputError(str(e)) from None
+        raise DataError(str(e)) from None
     _print_table(report)
     if report["lines_evaluated"] == 0:
         gate = "" if max_sigma_m is None else f" and an endpoint sigma of at most {max_sigma_m:g} m"
         click.echo(f"note: no map line has {min_observations} or more observations{gate}")
     if json_file is not None:
-        try:
-            ev.write_json_file(json_file, report)
-        except ev.InputError as e:
-            raise EvalMapInputError(str(e)) from None
+        write_json_report(json_file, report)

@@ -1,4 +1,5 @@
-"""Click parameter types shared by the commands: output folders and files checked before any work is done.
+"""Click parameter types shared by the commands: output folders and files checked before any work is done; and the
+evaluation commands' data error and JSON report writer.
 
 A run, a render or a plot that can only fail at the end, when it writes, loses the work; these types check, when the
 command line is parsed, that the path can be created and written, without creating anything. A path that cannot is a
@@ -81,3 +82,19 @@ def key_values(ctx, param, values):
         if not sep or not key.strip():
             raise click.BadParameter(f"'{item}' is not KEY=VALUE (e.g. pipeline.use_lines=false)", ctx, param)
     return values
+
+
+class DataError(click.ClickException):
+    """Missing or malformed input data (linnet.evaluation.InputError): one line on stderr, exit code 1."""
+
+    exit_code = 1
+
+
+def write_json_report(path: Path, report: dict) -> None:
+    """Writes an evaluation report as JSON (linnet.evaluation.write_json_file); a write failure is a DataError."""
+    from linnet import evaluation as ev
+
+    try:
+        ev.write_json_file(path, report)
+    except ev.InputError as e:
+        raise DataError(str(e)) from None
