@@ -34,6 +34,7 @@ __all__ = [
     "ErrorResult",
     "trajectory_from_arrays",
     "load_trajectory",
+    "dataset_ground_truth",
     "detect_format",
     "ape",
     "rpe",
@@ -205,6 +206,19 @@ def _is_float(token: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def dataset_ground_truth(dataset: PathLike) -> Path:
+    """mav0/state_groundtruth_estimate0/data.csv of a EuRoC-format dataset given as the folder holding mav0/ or as
+    mav0/ itself. Raises InputError naming the file when it is missing."""
+    dataset = Path(dataset)
+    root = dataset
+    if not (dataset / "mav0").is_dir() and dataset.name == "mav0":
+        root = dataset.parent
+    gt = root / "mav0" / "state_groundtruth_estimate0" / "data.csv"
+    if not gt.is_file():
+        raise InputError(f"{gt}: no such file (the dataset's ground truth)")
+    return gt
 
 
 def load_trajectory(path: PathLike, fmt: str = "auto") -> Trajectory:

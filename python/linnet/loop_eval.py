@@ -201,11 +201,7 @@ def summarise(loops: Loops, errors: dict, bands: Sequence[int] = (20, 30)) -> li
 
 def _ground_truth_file(ground_truth: Path) -> Path:
     if ground_truth.is_dir():
-        root = ground_truth.parent if ground_truth.name == "mav0" else ground_truth
-        f = root / "mav0" / "state_groundtruth_estimate0" / "data.csv"
-        if not f.is_file():
-            raise InputError(f"{f}: no such file (the dataset's ground truth)")
-        return f
+        return ev.dataset_ground_truth(ground_truth)
     if not ground_truth.is_file():
         raise InputError(f"{ground_truth}: no such file or folder (a ground-truth trajectory or a dataset folder)")
     return ground_truth

@@ -318,13 +318,8 @@ def _dataset_paths(dataset: Path) -> tuple[Path, Path]:
     """(ground truth data.csv, sim/lines.csv) of a dataset given as the folder holding mav0/ or as mav0/ itself."""
     if not dataset.is_dir():
         raise InputError(f"{dataset}: not a folder (expected a dataset folder holding mav0/ and sim/)")
-    root = dataset
-    if not (dataset / "mav0").is_dir() and dataset.name == "mav0":
-        root = dataset.parent
-    gt = root / "mav0" / "state_groundtruth_estimate0" / "data.csv"
-    if not gt.is_file():
-        raise InputError(f"{gt}: no such file (the dataset's ground truth)")
-    return gt, root / "sim" / "lines.csv"
+    gt = ev.dataset_ground_truth(dataset)
+    return gt, gt.parents[2] / "sim" / "lines.csv"  # beside mav0/
 
 
 def _run_trajectory(run_dir: Path) -> Path:
