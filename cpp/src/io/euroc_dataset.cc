@@ -329,7 +329,7 @@ cv::Mat EurocDataset::loadImage(const std::string& path) {
     if (size < 0) io::failInput(path, 0, "cannot read image file");
     if (size == 0) io::failInput(path, 0, "cannot decode image (empty file)");
     if (size > std::numeric_limits<int>::max()) io::failInput(path, 0, "image file too large");
-    bytes.reset(new unsigned char[static_cast<std::size_t>(size)]);
+    bytes = std::make_unique_for_overwrite<unsigned char[]>(static_cast<std::size_t>(size));
     file.seekg(0);
     if (!file.read(reinterpret_cast<char*>(bytes.get()), size)) io::failInput(path, 0, "cannot read image file");
   }
