@@ -471,6 +471,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   points_.triangulate(window_);
   {
     ScopedMs timer(&line_ms_);
+    lines_.reidentify(window_);
     lines_.gateNewest(window_);
     lines_.triangulate(window_);
   }

@@ -28,8 +28,9 @@ LineLandmarks::LineLandmarks(const LineOptions& options, double focal_length, co
 
 void LineLandmarks::observe(FrameId frame, Timestamp t, const std::vector<LineObservation>& lines) {
   for (const LineObservation& l : lines) {
-    LineLandmark& lm = landmarks_[l.id];
-    if (lm.id < 0) lm.id = l.id;
+    const std::int64_t id = landmarkId(l.id);
+    LineLandmark& lm = landmarks_[id];
+    if (lm.id < 0) lm.id = id;
     LineFrameObs o;
     o.s0 = l.s0;
     o.e0 = l.e0;
@@ -168,15 +169,17 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
   return out;
 }
 
-void LineLandmarks::archive(const LineLandmark& lm) {
+void LineLandmarks::archive(LineLandmark& lm) {
   if (!lm.triangulated || !lm.has_extent) return;
   const auto at = std::lower_bound(map_.begin(), map_.end(), lm.id,
-                                   [](const MapLine& m, std::int64_t id) { return m.id < id; });
+                                   [](const ArchivedLine& m, std::int64_t id) { return m.line.id < id; });
+  ArchivedLine archived{mapLineOf(lm, lm.left_window), {}};
+  if (options_.reidentify && options_.reid_map) archived.sightings = std::move(lm.left_window);
   // Lines leave the window roughly in the order of their ids: the insertion is near the end.
-  if (at != map_.end() && at->id == lm.id) {
-    *at = mapLineOf(lm, lm.left_window);
+  if (at != map_.end() && at->line.id == lm.id) {
+    *at = std::move(archived);
   } else {
-    map_.insert(at, mapLineOf(lm, lm.left_window));
+    map_.insert(at, std::move(archived));
   }
 }
 
@@ -233,12 +236,15 @@ void LineLandmarks::removeFrame(const Window& window, FrameId frame) {
       ++it;
     }
   }
+  // Aliases of lines that left the window (or were removed) end: the id starts a line of its own if seen again.
+  for (auto a = alias_.begin(); a != alias_.end();) a = landmarks_.count(a->second) ? std::next(a) : alias_.erase(a);
 }
 
 void LineLandmarks::clear() {
-  for (const auto& [id, lm] : landmarks_)
+  for (auto& [id, lm] : landmarks_)
     if (lm.solved) archive(lm);
   landmarks_.clear();
+  alias_.clear();
 }
 
 double LineLandmarks::sightingErrorsPx(const WindowCameras& cams, const LineLandmark& lm,
@@ -356,11 +362,7 @@ int LineLandmarks::rejectOutliers(const Window& window) {
           bad = true;
         } else if (lm.has_extent) {
           // Drift: the new back-projected segment must touch the extent (within max_extent_gap_m).
-          const Vec3 u = pluckerDirection(L), P0 = pluckerClosestPointToOrigin(L);
-          const double ta = (lm.a - P0).dot(u), tb = (lm.b - P0).dot(u);
-          const double na = (a - P0).dot(u), nb = (b - P0).dot(u);
-          const double gap = std::max({0.0, std::min(na, nb) - std::max(ta, tb), std::min(ta, tb) - std::max(na, nb)});
-          if (gap > options_.max_extent_gap_m) {
+          if (extentGap(L, lm.a, lm.b, a, b) > options_.max_extent_gap_m) {
             ++rejections_.drifted;
             bad = true;
           }
@@ -419,6 +421,18 @@ std::vector<MapLine> LineLandmarks::windowLines() const {
   std::vector<MapLine> out;
   for (const auto& [id, lm] : landmarks_)
     if (lm.triangulated && lm.has_extent) out.push_back(currentMapLine(id, lm));
+  if (alias_.empty()) return out;
+  // A re-identified front-end id names its line too (the loop closer looks lines up by the front-end's ids).
+  const std::size_t n = out.size();
+  for (const auto& [from, to] : alias_) {
+    const auto it = std::lower_bound(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(n), to,
+                                     [](const MapLine& m, std::int64_t id) { return m.id < id; });
+    if (it == out.begin() + static_cast<std::ptrdiff_t>(n) || it->id != to) continue;
+    MapLine copy = *it;
+    copy.id = from;
+    out.push_back(copy);
+  }
+  std::sort(out.begin(), out.end(), [](const MapLine& x, const MapLine& y) { return x.id < y.id; });
   return out;
 }
 
@@ -440,7 +454,8 @@ std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
   std::vector<MapLine> out;
   out.reserve(map_.size() + window_lines.size());
   auto w = window_lines.begin();
-  for (const MapLine& m : map_) {
+  for (const ArchivedLine& archived : map_) {
+    const MapLine& m = archived.line;
     for (; w != window_lines.end() && w->id < m.id; ++w) out.push_back(*w);
     if (w != window_lines.end() && w->id == m.id) {
       out.push_back(*w);

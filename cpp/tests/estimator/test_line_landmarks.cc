@@ -411,5 +411,83 @@ TEST(LineLandmarks, TheNewestFramesBadSightingIsGatedBeforeTheSolve) {
   }
 }
 
+// A line the front-end lost and found again under a new id: its first sighting lies on the projection of a solved
+// window line, which it joins (the new id then names that line); also when a second estimate of the same line lies
+// beside it (a duplicate, within reid_px of the first); not when the polarity is reversed (the other side of a bar),
+// when a second line lies on the other side of the sighting (a parallel edge), or when it lies elsewhere.
+TEST(LineLandmarks, ANewTrackOnAWindowLinesProjectionContinuesThatLine) {
+  const Window w = makeWindow(3);
+  const Vec3 px(0.0065, 0.0, 0.0);  // about 1 px beside the line at 3 m
+  enum Variant { kJoins, kReversed, kParallel, kElsewhere, kDuplicate };
+  for (const Variant variant : {kJoins, kReversed, kParallel, kElsewhere, kDuplicate}) {
+    SCOPED_TRACE(variant);
+    LineLandmarks lines(LineOptions{}, kFocal, kT_B_C0, kT_B_C1);
+    const Vec3 second = variant == kParallel ? -3.0 * px : 0.6 * px;
+    for (int i = 0; i < 2; ++i) {
+      std::vector<LineObservation> seen = {observation(7, w[i].T_W_B(), kA, kB, true)};
+      if (variant == kParallel || variant == kDuplicate)
+        seen.push_back(observation(8, w[i].T_W_B(), kA + second, kB + second, true));
+      lines.observe(i, w[i].t, seen);
+    }
+    ASSERT_EQ(lines.triangulate(w), variant == kParallel || variant == kDuplicate ? 2 : 1);
+    lines.residuals(w);  // solved
+    LineObservation again = observation(20, w[2].T_W_B(), along(0.2), along(0.9), true);
+    if (variant == kReversed) again = observation(20, w[2].T_W_B(), along(0.9), along(0.2), true);
+    if (variant == kElsewhere) again = observation(20, w[2].T_W_B(), along(0.2) + 4.0 * px, along(0.9) + 4.0 * px, true);
+    lines.observe(2, w[2].t, {again});
+    const bool joins = variant == kJoins || variant == kDuplicate;
+    EXPECT_EQ(lines.reidentify(w), joins ? 1 : 0);
+    EXPECT_EQ(lines.all().count(20), joins ? 0u : 1u);
+    EXPECT_EQ(lines.all().at(7).obs.count(2), joins ? 1u : 0u);
+    if (variant != kJoins) continue;
+    EXPECT_EQ(lines.all().at(7).observations, 3);
+    // The new id names line 7 for the loop closer, and its later sightings go to line 7.
+    const std::vector<MapLine> named = lines.windowLines();
+    ASSERT_EQ(named.size(), 2u);
+    EXPECT_EQ(named[0].id, 7);
+    EXPECT_EQ(named[1].id, 20);
+    EXPECT_EQ(named[1].a, named[0].a);
+    Window later = makeWindow(3);
+    lines.removeFrame(later, 0);
+    lines.observe(0, w[0].t, {observation(20, w[0].T_W_B(), kA, kB, false)});  // frame id reused as a later frame
+    EXPECT_EQ(lines.all().count(20), 0u);
+    EXPECT_EQ(lines.all().at(7).obs.count(0), 1u);
+  }
+}
+
+// With reid_map, a line that left the window for the map is found again by a new track and comes back into the
+// window with its sightings: it leaves the map, and goes back into it once, with every sighting, under its own id.
+TEST(LineLandmarks, AMapLineFoundAgainComesBackIntoTheWindow) {
+  Window w = makeWindow(3);
+  for (const bool reid_map : {false, true}) {
+    SCOPED_TRACE(reid_map);
+    LineOptions options;
+    options.reid_map = reid_map;
+    LineLandmarks lines(options, kFocal, kT_B_C0, kT_B_C1);
+    for (int i = 0; i < 2; ++i) lines.observe(i, w[i].t, {observation(7, w[i].T_W_B(), kA, kB, true)});
+    ASSERT_EQ(lines.triangulate(w), 1);
+    lines.residuals(w);
+    lines.removeFrame(w, 0);
+    lines.removeFrame(w, 1);
+    ASSERT_TRUE(lines.all().empty());
+    ASSERT_EQ(lines.mapLines().size(), 1u);
+    lines.observe(2, w[2].t, {observation(30, w[2].T_W_B(), along(0.1), along(0.8), true)});
+    EXPECT_EQ(lines.reidentify(w), reid_map ? 1 : 0);
+    if (!reid_map) continue;
+    ASSERT_EQ(lines.all().count(7), 1u);
+    const LineLandmark& back = lines.all().at(7);
+    EXPECT_EQ(back.observations, 3);
+    EXPECT_EQ(back.left_window.size(), 4u);  // two frames' cam0 and cam1 sightings
+    EXPECT_TRUE(back.triangulated && back.solved);
+    EXPECT_EQ(lines.mapLines().size(), 1u);  // the window's line 7 only: it left the map
+    lines.removeFrame(w, 2);
+    const std::vector<MapLine> map = lines.mapLines();
+    ASSERT_EQ(map.size(), 1u);
+    EXPECT_EQ(map[0].id, 7);
+    EXPECT_EQ(map[0].observations, 3);
+    EXPECT_EQ(map[0].t_last, w[2].t);
+  }
+}
+
 }  // namespace
 }  // namespace linnet

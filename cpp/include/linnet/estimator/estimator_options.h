@@ -200,6 +200,15 @@ struct LineOptions {
                                       // observations are only dropped
   bool map_refine = true;             // a line leaving the window for the map is re-estimated on every observation of
                                       // its life at the frames' final poses (line_map_refinement.h)
+  bool reidentify = true;             // a new track whose first sighting lies on the projection of a window line not
+                                      // seen in that frame (the tracker lost the line and found it again under a new
+                                      // id) continues that line: longer tracks, one landmark per line
+  double reid_px = 2.0;               // re-identification: both endpoints within this of the line's projection, in
+                                      // cam0 and (if matched) cam1, at the frame's predicted pose, pixels
+  bool reid_map = false;              // map lines (that left the window) in front of the camera are candidates too:
+                                      // found again, they come back into the window with their sightings
+  double reid_ambiguity = 2.0;        // a second window line within reid_ambiguity x reid_px of the sighting (a
+                                      // parallel edge nearby): ambiguous, no re-identification
   bool weighting = false;             // patent point / line weighting per frame (see below); off: it did not help
   int weighting_min_lines = 30;       // more lines than this in a frame: the fixed weights below
   double point_weight = 0.2;          // patent: w_p, w_l (line-dominant in low texture); otherwise the weights
@@ -226,6 +235,12 @@ struct LineOptions {
     v("right_residuals", right_residuals, "cam1 line residuals where matched");
     v("marginalise", marginalise, "lines observed by the leaving keyframe go into the prior");
     v("map_refine", map_refine, "refine lines leaving the window on all their observations");
+    v("reidentify", reidentify, "new tracks lying on a window line's projection continue that line");
+    v("reid_px", reid_px, "re-identification: largest endpoint distance to the line's projection, pixels", 0.0,
+      100.0);
+    v("reid_map", reid_map, "re-identification also against the map's lines (restored into the window)");
+    v("reid_ambiguity", reid_ambiguity, "re-identification: a second line within this factor of reid_px: none", 1.0,
+      100.0);
     v("weighting", weighting, "patent point / line weighting per frame");
     v("weighting_min_lines", weighting_min_lines, "lines in a frame above which the fixed weights apply", 0, 100000);
     v("point_weight", point_weight, "point weight w_p with many lines", 0.0, 1.0);

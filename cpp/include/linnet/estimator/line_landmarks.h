@@ -83,6 +83,11 @@ class LineLandmarks {
   /// Removes used lines that fail a check after a solve (reprojection, depth, end-on, drift). Updates the extents of
   /// the remaining lines with the newest frame's observation. Returns how many were removed.
   int rejectOutliers(const Window& window);
+  /// Before a solve (options.reidentify): a line seen for the first time in the newest frame whose cam0 (and cam1)
+  /// segment lies within options.reid_px of the projection of exactly one solved window line not seen in that frame,
+  /// with the same gradient polarity and touching its extent, is that line found again: its sighting joins the
+  /// line, and the front-end's new id is an alias of it from now on. Returns how many were joined.
+  int reidentify(const Window& window);
   /// Before a solve: drops the newest frame's sightings of solved lines that lie farther than
   /// options.max_observation_px from the line's projection at the frame's current (predicted) pose; returns how many.
   int gateNewest(const Window& window);
@@ -133,8 +138,15 @@ class LineLandmarks {
   bool usable(const LineLandmark& lm) const {
     return lm.triangulated && lm.obs.size() >= static_cast<std::size_t>(std::max(2, options_.min_observations));
   }
+  /// Distance along the line L between a back-projected segment a-b (on L) and the extent ext_a-ext_b, 0 if they
+  /// overlap.
+  static double extentGap(const Vec6& L, const Vec3& ext_a, const Vec3& ext_b, const Vec3& a, const Vec3& b);
+  /// The map line map_[index] back in the window as landmark (its sightings kept), removed from the map.
+  LineLandmark& restore(std::size_t index);
+  /// The landmark a front-end id stands for: itself, or the line it was re-identified as (while that is in the window).
+  std::int64_t landmarkId(std::int64_t frontend_id);
   /// Into the map, refined on all its sightings first when options.map_refine.
-  void archive(const LineLandmark& lm);
+  void archive(LineLandmark& lm);
   /// Appends frame f's sightings of a line (cam0, and cam1 if matched) at f's pose to `out`.
   void appendSightings(const WindowFrame& f, const LineFrameObs& o, std::vector<LineSighting>* out) const;
   /// lm as a map line, refined on `sightings` when options.map_refine (the window estimate otherwise, or if the
@@ -146,9 +158,16 @@ class LineLandmarks {
   Pose T_B_C0_;
   std::optional<Pose> T_B_C1_;
   std::map<std::int64_t, LineLandmark> landmarks_;
-  // Lines that left the window, sorted by id (a later track of the id replaces it). A flat vector: on a long flight
-  // the map holds tens of thousands of lines, and a tree node would add 60 % to each.
-  std::vector<MapLine> map_;
+  // Lines that left the window, sorted by id (a later track of the id replaces it), with their sightings (when
+  // options.map_refine) for their re-identification and refinement when they are seen again. A flat vector: on a
+  // long flight the map holds thousands of lines, and a tree node would add to each.
+  struct ArchivedLine {
+    MapLine line;
+    std::vector<LineSighting> sightings;
+  };
+  std::vector<ArchivedLine> map_;
+  // Front-end ids re-identified as an older window line (reidentify): new id -> the line's id, while it is in the window.
+  std::map<std::int64_t, std::int64_t> alias_;
   LineRejectionStats rejections_;
 };
 
