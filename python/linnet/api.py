@@ -158,6 +158,8 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
         "cpu_real_time_factor": run.cpu_real_time_factor,
         "image_load_cpu_s": run.image_load_cpu_s,
         "imu_samples": run.imu_samples,
+        "map_lines": run.map_line_count,
+        "reidentified_lines": run.reidentified_lines,
     }
     if run.time_offset_estimated:
         summary["time_offset_ms"] = 1e3 * run.time_offset_s

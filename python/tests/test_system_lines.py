@@ -59,6 +59,10 @@ def test_line_map_files_read_back(lowtex_runs):
     # Every line's predicted endpoint sigma, the same in both; most of them finite and under a metre.
     assert np.array_equal(m["line_sigma_m"], sigmas)
     assert np.all(sigmas > 0) and np.mean(np.isfinite(sigmas) & (sigmas < 1.0)) > 0.8
+    # The summary counts the map's lines, and the new tracks the window re-identified (the front-end loses lines
+    # in blur and finds them again under new ids).
+    assert result["summary"]["map_lines"] == len(ids)
+    assert result["summary"]["reidentified_lines"] > 0
     ply = read_ply(out / "map.ply")
     assert len(ply.segments) == len(ids)
     assert len(ply.points) == len(m["points"])

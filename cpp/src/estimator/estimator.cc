@@ -469,9 +469,10 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   decideKeyframe(f, tracked_points);
   f.at_rest = options_.zero_velocity.enabled && detectRest(window_[window_.size() - 2], f);
   points_.triangulate(window_);
+  int reidentified = 0;
   {
     ScopedMs timer(&line_ms_);
-    lines_.reidentify(window_);
+    reidentified = lines_.reidentify(window_);
     lines_.gateNewest(window_);
     lines_.triangulate(window_);
   }
@@ -495,6 +496,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   o.keyframe = keyframe;
   o.num_points = used;
   o.num_lines = used_lines;
+  o.reidentified_lines = reidentified;
   return finish(o);
 }
 

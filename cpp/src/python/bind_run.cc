@@ -37,6 +37,10 @@ void bindRun(py::module_& m) {
       .def_readonly("first_imu_t_ns", &RunSummary::first_imu_t)
       .def_readonly("last_imu_t_ns", &RunSummary::last_imu_t)
       .def_readonly("imu_samples", &RunSummary::imu_samples)
+      .def_property_readonly(
+          "map_line_count", [](const RunSummary& r) { return r.map_lines.size(); }, "lines in the run's line map")
+      .def_readonly("reidentified_lines", &RunSummary::reidentified_lines,
+                    "new line tracks found to continue a window line (estimator.lines.reidentify)")
       .def_readonly("stereo", &RunSummary::stereo)
       .def_readonly("warnings", &RunSummary::warnings)
       .def_readonly("extrinsics_estimated", &RunSummary::extrinsics_estimated)

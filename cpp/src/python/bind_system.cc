@@ -153,6 +153,9 @@ void bindSystem(py::module_& m) {
       .def_property_readonly("landmark_points", [](const FrameResult& r) { return r.estimate.num_points; })
       .def_property_readonly("landmark_lines", [](const FrameResult& r) { return r.estimate.num_lines; })
       .def_property_readonly(
+          "reidentified_lines", [](const FrameResult& r) { return r.estimate.reidentified_lines; },
+          "new line tracks found to continue a window line in this frame (estimator.lines.reidentify)")
+      .def_property_readonly(
           "time_offset_s", [](const FrameResult& r) { return r.estimate.time_offset_s; },
           "camera-to-IMU time offset in use (camera stamp - capture time), s (estimator.time_offset)")
       .def_property_readonly(

@@ -187,6 +187,9 @@ def _print_summary(summary: dict, out: Path) -> None:
     if "stereo_correction" in summary:
         c = summary["stereo_correction"]
         rows.append(("cam1 correction (online)", f"{c['rotation_deg']:.4f} deg, {1e3 * c['translation_m']:.3f} mm"))
+    if summary.get("map_lines"):
+        rows.append(("line map", f"{summary['map_lines']} lines; {summary['reidentified_lines']} new tracks "
+                                 "re-identified as window lines"))
     if "loop_closure" in summary:
         lc = summary["loop_closure"]
         rows.append(("loop closure", f"{lc['loops']} loops, largest correction {lc['largest_correction_m']:.3f} m; "

@@ -34,6 +34,8 @@ struct EstimatorOutput {
   bool keyframe = false;
   int num_points = 0;          // point landmarks used in the last solve
   int num_lines = 0;           // line landmarks used in the last solve
+  int reidentified_lines = 0;  // new front-end tracks found to continue a window line this frame (LineLandmarks::
+                               // reidentify)
   double line_ms = 0.0;        // back-end wall time of the line-only steps this frame (observe, triangulate, build
                                // residuals, reject outliers, marginalise), ms; the joint solve is in solver_ms
   double solver_ms = 0.0;      // wall time of the window solve (points, lines, IMU, prior), ms

@@ -54,6 +54,7 @@ struct RunSummary {
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;
   std::vector<MapLine> map_lines;
+  long reidentified_lines = 0;  // new line tracks found to continue a window line (estimator.lines.reidentify)
 };
 
 /// The config for a EuRoC folder: `base` with cam0/cam1/imu calibration replaced by the dataset's sensor.yaml (or
