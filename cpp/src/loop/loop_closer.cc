@@ -225,6 +225,11 @@ bool LoopCloser::tryLoop(std::size_t k, const PlaceFeatures& place) {
       sigma_t = std::max(sigma_t, options_.loop_pnp_sigma_scale * largestStd(m.covariance.block<3, 3>(3, 3)));
       sigma_yaw = std::max(sigma_yaw, options_.loop_pnp_sigma_scale * largestStd(m.covariance.block<3, 3>(0, 0)));
     }
+    if (m.inliers > 0 && m.inliers < options_.full_weight_inliers) {
+      const double looser = static_cast<double>(options_.full_weight_inliers) / m.inliers;
+      sigma_t *= looser;
+      sigma_yaw *= looser;
+    }
     graph_.addEdge(graph_.loopEdge(j, k, T_Bj_Bk, sigma_t, sigma_yaw));
     // A loop the corrected graph already agrees with (within consistent_loop_sigmas of its edge's sigmas) changes it
     // little: its edge is kept for the next solve, and the whole graph is not solved again now (on a long flight

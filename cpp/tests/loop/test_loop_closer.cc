@@ -99,6 +99,28 @@ TEST(LoopCloser, LoopEdgesWeightedByTheirPnPCovarianceStillRemoveTheDrift) {
   EXPECT_LT(rms_after, 0.35 * rms_before) << rms_before << " -> " << rms_after;
 }
 
+TEST(LoopCloser, LoopsOnFewInliersGetLooserEdges) {
+  // Fixed sigmas, so that the edge's sigma is the floor times full_weight_inliers / inliers exactly.
+  const test::WallScene scene;
+  const Flight f = fly(0.0002, Vec3(0.004, 0.002, 0.001));
+  for (const int full : {0, 100000}) {
+    SCOPED_TRACE(full);
+    LoopOptions o;
+    o.enabled = true;
+    o.loop_pnp_sigma_scale = 0.0;
+    o.full_weight_inliers = full;
+    LoopCloser loop(o, *scene.camera, Pose::identity(), scene.T_C1_C0);
+    double last_error = 0.0;
+    closeLoops(f, o, &loop, &last_error);
+    for (const LoopEvent& e : loop.loops()) {
+      const double looser = full > 0 ? static_cast<double>(full) / e.inliers : 1.0;
+      ASSERT_GT(e.inliers, 0);
+      EXPECT_NEAR(e.sigma_m, o.loop_sigma_m * looser, 1e-12 * looser);
+      EXPECT_NEAR(e.sigma_yaw_deg, o.loop_sigma_yaw_deg * looser, 1e-9 * looser);
+    }
+  }
+}
+
 TEST(LoopCloser, FindsNoLoopOnAFlightThatNeverComesBack) {
   const test::WallScene scene;
   LoopOptions o;
