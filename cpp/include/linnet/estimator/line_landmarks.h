@@ -86,7 +86,10 @@ class LineLandmarks {
   /// Before a solve (options.reidentify): a line seen for the first time in the newest frame whose cam0 (and cam1)
   /// segment lies within options.reid_px of the projection of exactly one solved window line not seen in that frame,
   /// with the same gradient polarity and touching its extent, is that line found again: its sighting joins the
-  /// line, and the front-end's new id is an alias of it from now on. Returns how many were joined.
+  /// line, and the front-end's new id is an alias of it from now on. With options.reid_map, map lines in front of the
+  /// camera are candidates too (one found again comes back into the window with its sightings). A second candidate
+  /// within reid_ambiguity x reid_px whose distances differ from the nearest one's by more than reid_px (a parallel
+  /// edge, not the same line twice) makes the sighting ambiguous. Returns how many were joined.
   int reidentify(const Window& window);
   /// Before a solve: drops the newest frame's sightings of solved lines that lie farther than
   /// options.max_observation_px from the line's projection at the frame's current (predicted) pose; returns how many.
