@@ -81,7 +81,10 @@ struct System::Impl {
 
   // Results.
   mutable std::mutex result_mutex;
-  std::vector<FrameResult> results;
+  // One per frame for the whole run. A deque grows in blocks: a vector's doubling left its old buffers (half the
+  // results' size) with the allocator, and up to half its capacity unused (10 minute figure-eight: resident set
+  // growth after the first minute 17.6 -> 14.4 %).
+  std::deque<FrameResult> results;
   std::function<void(const FrameResult&)> callback;
 
   // First error raised in a worker thread.
@@ -402,7 +405,7 @@ void System::finish() {
 
 std::vector<FrameResult> System::trajectory() const {
   std::lock_guard<std::mutex> lock(impl_->result_mutex);
-  return impl_->results;
+  return {impl_->results.begin(), impl_->results.end()};
 }
 
 SystemMap System::map() const {
