@@ -172,14 +172,14 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
 void LineLandmarks::archive(LineLandmark& lm) {
   if (!lm.triangulated || !lm.has_extent) return;
   const auto at = std::lower_bound(map_.begin(), map_.end(), lm.id,
-                                   [](const ArchivedLine& m, std::int64_t id) { return m.line.id < id; });
-  ArchivedLine archived{mapLineOf(lm, lm.left_window), {}};
-  if (options_.reidentify && options_.reid_map) archived.sightings = std::move(lm.left_window);
+                                   [](const MapLine& m, std::int64_t id) { return m.id < id; });
+  MapLine archived = mapLineOf(lm, lm.left_window);
+  if (options_.reidentify && options_.reid_map) map_sightings_[lm.id] = std::move(lm.left_window);
   // Lines leave the window roughly in the order of their ids: the insertion is near the end.
-  if (at != map_.end() && at->line.id == lm.id) {
-    *at = std::move(archived);
+  if (at != map_.end() && at->id == lm.id) {
+    *at = archived;
   } else {
-    map_.insert(at, std::move(archived));
+    map_.insert(at, archived);
   }
 }
 
@@ -454,8 +454,7 @@ std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
   std::vector<MapLine> out;
   out.reserve(map_.size() + window_lines.size());
   auto w = window_lines.begin();
-  for (const ArchivedLine& archived : map_) {
-    const MapLine& m = archived.line;
+  for (const MapLine& m : map_) {
     for (; w != window_lines.end() && w->id < m.id; ++w) out.push_back(*w);
     if (w != window_lines.end() && w->id == m.id) {
       out.push_back(*w);

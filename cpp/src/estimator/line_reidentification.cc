@@ -44,17 +44,21 @@ double LineLandmarks::extentGap(const Vec6& L, const Vec3& ext_a, const Vec3& ex
 }
 
 LineLandmark& LineLandmarks::restore(std::size_t index) {
-  ArchivedLine& m = map_[index];
-  LineLandmark& lm = landmarks_[m.line.id];
-  lm.id = m.line.id;
-  lm.setL(normalisePlucker(pluckerFromPoints(m.line.a, m.line.b)));
+  const MapLine m = map_[index];
+  LineLandmark& lm = landmarks_[m.id];
+  lm.id = m.id;
+  lm.setL(normalisePlucker(pluckerFromPoints(m.a, m.b)));
   lm.triangulated = lm.solved = lm.has_extent = true;
-  lm.observations = m.line.observations;
-  lm.t_last = m.line.t_last;
-  lm.max_sin_angle = std::sin(m.line.angle_deg * kDegToRad);
-  lm.a = m.line.a;
-  lm.b = m.line.b;
-  lm.left_window = std::move(m.sightings);
+  lm.observations = m.observations;
+  lm.t_last = m.t_last;
+  lm.max_sin_angle = std::sin(m.angle_deg * kDegToRad);
+  lm.a = m.a;
+  lm.b = m.b;
+  const auto s = map_sightings_.find(m.id);
+  if (s != map_sightings_.end()) {
+    lm.left_window = std::move(s->second);
+    map_sightings_.erase(s);
+  }
   map_.erase(map_.begin() + static_cast<std::ptrdiff_t>(index));
   return lm;
 }
@@ -91,12 +95,13 @@ int LineLandmarks::reidentify(const Window& window) {
   }
   if (fresh.empty()) return 0;
   for (std::size_t i = 0; options_.reid_map && i < map_.size(); ++i) {
-    const ArchivedLine& m = map_[i];
-    if (m.sightings.empty() || landmarks_.count(m.line.id)) continue;
-    const double za = (*c0 * m.line.a).z(), zb = (*c0 * m.line.b).z();
+    const MapLine& m = map_[i];
+    const auto sightings = map_sightings_.find(m.id);
+    if (sightings == map_sightings_.end() || sightings->second.empty() || landmarks_.count(m.id)) continue;
+    const double za = (*c0 * m.a).z(), zb = (*c0 * m.b).z();
     if (std::max(za, zb) < options_.min_depth_m || std::min(za, zb) > options_.max_depth_m) continue;
-    const LineSighting& r = m.sightings.back();
-    known.push_back({nullptr, i, normalisePlucker(pluckerFromPoints(m.line.a, m.line.b)), m.line.a, m.line.b,
+    const LineSighting& r = sightings->second.back();
+    known.push_back({nullptr, i, normalisePlucker(pluckerFromPoints(m.a, m.b)), m.a, m.b,
                      r.T_W_C, r.s, r.e});
   }
   if (known.empty()) return 0;

@@ -162,15 +162,13 @@ class LineLandmarks {
   Pose T_B_C0_;
   std::optional<Pose> T_B_C1_;
   std::map<std::int64_t, LineLandmark> landmarks_;
-  // Lines that left the window, sorted by id (a later track of the id replaces it), with their sightings (with
-  // options.reid_map) for their re-identification and refinement when they are seen again. On a long flight the map
-  // holds tens of thousands of lines: a deque grows in blocks (a vector's doubling kept its old buffers with the
-  // allocator and up to half its capacity unused), and a tree node would add to each line.
-  struct ArchivedLine {
-    MapLine line;
-    std::vector<LineSighting> sightings;
-  };
-  std::deque<ArchivedLine> map_;
+  // Lines that left the window, sorted by id (a later track of the id replaces it). On a long flight the map holds
+  // tens of thousands of lines: a deque grows in blocks (a vector's doubling kept its old buffers with the allocator
+  // and up to half its capacity unused), and a tree node would add to each line.
+  std::deque<MapLine> map_;
+  // With options.reid_map, the sightings of the map's lines, by id (for their re-identification and refinement when
+  // they are seen again); empty otherwise.
+  std::map<std::int64_t, std::vector<LineSighting>> map_sightings_;
   // Front-end ids re-identified as an older window line (reidentify): new id -> the line's id, while it is in the window.
   std::map<std::int64_t, std::int64_t> alias_;
   LineRejectionStats rejections_;
