@@ -8,7 +8,6 @@
 #include <cmath>
 #include <limits>
 #include <vector>
-#include <cstdio>
 
 #include "linnet/estimator/line_landmarks.h"
 
@@ -101,8 +100,7 @@ int LineLandmarks::reidentify(const Window& window) {
     const double za = (*c0 * m.a).z(), zb = (*c0 * m.b).z();
     if (std::max(za, zb) < options_.min_depth_m || std::min(za, zb) > options_.max_depth_m) continue;
     const LineSighting& r = sightings->second.back();
-    known.push_back({nullptr, i, normalisePlucker(pluckerFromPoints(m.a, m.b)), m.a, m.b,
-                     r.T_W_C, r.s, r.e});
+    known.push_back({nullptr, i, normalisePlucker(pluckerFromPoints(m.a, m.b)), m.a, m.b, r.T_W_C, r.s, r.e});
   }
   if (known.empty()) return 0;
 
