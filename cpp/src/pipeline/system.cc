@@ -14,6 +14,7 @@
 #include "linnet/features/line_tracker.h"
 #include "linnet/features/point_tracker.h"
 #include "linnet/pipeline/bounded_queue.h"
+#include "linnet/pipeline/result_log.h"
 #include "linnet/pipeline/worker_thread.h"
 
 namespace linnet {
@@ -81,10 +82,10 @@ struct System::Impl {
 
   // Results.
   mutable std::mutex result_mutex;
-  // One per frame for the whole run. A deque grows in blocks: a vector's doubling left its old buffers (half the
-  // results' size) with the allocator, and up to half its capacity unused (10 minute figure-eight: resident set
-  // growth after the first minute 17.6 -> 14.4 %).
-  std::deque<FrameResult> results;
+  // One per frame for the whole run, in 224 instead of 528 bytes (result_log.h). It grows in blocks: a vector's
+  // doubling left its old buffers (half the results' size) with the allocator, and up to half its capacity unused
+  // (10 minute figure-eight: resident set growth after the first minute 17.6 -> 14.4 %).
+  ResultLog results;
   std::function<void(const FrameResult&)> callback;
 
   // First error raised in a worker thread.
@@ -216,6 +217,7 @@ struct System::Impl {
         r.backend_ms = msSince(t0);
         r.T_W_B = r.estimate.T_W_B;
         r.v_W = r.estimate.v_W;
+        std::optional<Pose> correction;
         if (loop && r.estimate.has_pose) {
           const double cl = threadCpuMs();
           if (r.estimate.keyframe && r.estimate.status == TrackingStatus::kTracking)
@@ -223,9 +225,9 @@ struct System::Impl {
           loop->setExtrinsics(r.estimate.T_B_R * config.cam0.T_B_C);
           if (loop->hasQueued())
             loop->updateWindow(estimator.windowPoses(), estimator.pointLandmarks(), estimator.windowLines());
-          const Pose C = loop->latestCorrection();
-          r.T_W_B = C * r.estimate.T_W_B;
-          r.v_W = C.q * r.estimate.v_W;
+          correction = loop->latestCorrection();
+          r.T_W_B = *correction * r.estimate.T_W_B;
+          r.v_W = correction->q * r.estimate.v_W;
           r.loop_cpu_ms = threadCpuMs() - cl;
         }
         r.line_backend_ms = r.estimate.line_ms;
@@ -242,7 +244,7 @@ struct System::Impl {
         std::function<void(const FrameResult&)> cb;
         {
           std::lock_guard<std::mutex> lock(result_mutex);
-          results.push_back(r);
+          results.push(r, correction);
           cb = callback;
         }
         if (cb) cb(r);
@@ -394,18 +396,16 @@ void System::finish() {
     impl_->loop->flush();
     // Every frame with the final correction of its keyframe (the pose graph moved them since the callback).
     std::lock_guard<std::mutex> lock(impl_->result_mutex);
-    for (FrameResult& r : impl_->results) {
-      if (!r.estimate.has_pose) continue;
-      const Pose C = impl_->loop->correctionAt(r.estimate.t);
-      r.T_W_B = C * r.estimate.T_W_B;
-      r.v_W = C.q * r.estimate.v_W;
-    }
+    impl_->results.recorrect([&](Timestamp t) { return impl_->loop->correctionAt(t); });
   }
 }
 
 std::vector<FrameResult> System::trajectory() const {
   std::lock_guard<std::mutex> lock(impl_->result_mutex);
-  return {impl_->results.begin(), impl_->results.end()};
+  std::vector<FrameResult> out;
+  out.reserve(impl_->results.size());
+  for (std::size_t i = 0; i < impl_->results.size(); ++i) out.push_back(impl_->results.at(i));
+  return out;
 }
 
 SystemMap System::map() const {
