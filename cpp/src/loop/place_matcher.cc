@@ -32,6 +32,9 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
     std::vector<cv::KeyPoint> corners;
     cv::FAST(left, corners, options.fast_threshold, true);
     cv::KeyPointsFilter::retainBest(corners, options.corners);
+    // Strongest first (retainBest only partitions): the loop closer's database keeps a prefix of them.
+    std::stable_sort(corners.begin(), corners.end(),
+                     [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
     for (cv::KeyPoint& c : corners) {
       c.size = size;
       c.angle = 0.0f;

@@ -21,17 +21,38 @@ std::size_t StoredPlace::bytes() const {
          heapBytes(line_uv) + heapBytes(line_desc) + heapBytes(line_p_C);
 }
 
-StoredPlace storePlace(const PlaceFeatures& f) {
+StoredPlace storePlace(const PlaceFeatures& f, int max_detected) {
   StoredPlace s;
-  s.uv.reserve(f.uv.size());
-  for (const Vec2& u : f.uv) s.uv.push_back(u.cast<float>());
-  s.descriptors_2d = f.descriptors_2d.clone();
+  // The rows kept: every tracked corner's, and the first max_detected of the others.
+  const int n = static_cast<int>(f.uv.size());
+  if (f.descriptors_2d.rows != n) max_detected = -1;  // rows that do not pair up: kept as they are
+  std::vector<bool> tracked(static_cast<std::size_t>(n), false);
+  for (int r : f.tracked_rows)
+    if (r >= 0 && r < n) tracked[static_cast<std::size_t>(r)] = true;
+  std::vector<int> kept_row(static_cast<std::size_t>(n), -1);  // row in the stored place, -1: dropped
+  std::vector<int> rows;
+  int detected = 0;
+  for (int r = 0; r < n; ++r) {
+    if (!tracked[static_cast<std::size_t>(r)] && max_detected >= 0 && detected++ >= max_detected) continue;
+    kept_row[static_cast<std::size_t>(r)] = static_cast<int>(rows.size());
+    rows.push_back(r);
+  }
+  s.uv.reserve(rows.size());
+  for (int r : rows) s.uv.push_back(f.uv[static_cast<std::size_t>(r)].cast<float>());
+  if (static_cast<int>(rows.size()) == f.descriptors_2d.rows) {
+    s.descriptors_2d = f.descriptors_2d.clone();
+  } else {
+    s.descriptors_2d.create(static_cast<int>(rows.size()), f.descriptors_2d.cols, f.descriptors_2d.type());
+    for (std::size_t i = 0; i < rows.size(); ++i) f.descriptors_2d.row(rows[i]).copyTo(s.descriptors_2d.row(static_cast<int>(i)));
+  }
   s.p_C.reserve(f.p_C.size());
   for (const Vec3& p : f.p_C) s.p_C.push_back(p.cast<float>());
-  bool rows = f.rows_3d.size() == f.p_C.size() && f.descriptors_2d.rows <= std::numeric_limits<std::uint16_t>::max();
-  for (std::size_t i = 0; rows && i < f.rows_3d.size(); ++i) rows = f.rows_3d[i] >= 0 && f.rows_3d[i] < f.descriptors_2d.rows;
-  if (rows) {
-    s.rows_3d.assign(f.rows_3d.begin(), f.rows_3d.end());
+  bool known = f.rows_3d.size() == f.p_C.size() && rows.size() <= std::numeric_limits<std::uint16_t>::max();
+  for (std::size_t i = 0; known && i < f.rows_3d.size(); ++i)
+    known = f.rows_3d[i] >= 0 && f.rows_3d[i] < n && kept_row[static_cast<std::size_t>(f.rows_3d[i])] >= 0;
+  if (known) {
+    s.rows_3d.reserve(f.rows_3d.size());
+    for (int r : f.rows_3d) s.rows_3d.push_back(static_cast<std::uint16_t>(kept_row[static_cast<std::size_t>(r)]));
   } else {
     s.descriptors_3d = f.descriptors_3d.clone();
   }

@@ -51,6 +51,34 @@ TEST(PlaceStore, GivesTheDescriptionBackToFloatPrecisionInLessMemory) {
   EXPECT_LT(static_cast<double>(s.bytes()), 0.75 * static_cast<double>(full));
 }
 
+TEST(PlaceStore, KeepsTheTrackedCornersAndTheStrongestDetectedOnes) {
+  const test::WallScene scene;
+  const PlaceFeatures f = describedWall(scene, test::WallScene::cameraAt(Vec3(0.1, 0.0, 1.2), 0.02));
+  const int tracked = static_cast<int>(f.tracked_rows.size());
+  const int detected = static_cast<int>(f.uv.size()) - tracked;
+  ASSERT_GT(detected, 40);
+  const StoredPlace s = storePlace(f, 30);
+  ASSERT_EQ(static_cast<int>(s.uv.size()), tracked + 30);
+  EXPECT_LT(s.bytes(), storePlace(f).bytes());
+  // The same 3D corners with the same descriptors; the kept 2D rows are the tracked ones and the first 30 others.
+  const PlaceFeatures g = expandPlace(s);
+  ASSERT_EQ(g.descriptors_3d.rows, f.descriptors_3d.rows);
+  EXPECT_EQ(cv::norm(g.descriptors_3d, f.descriptors_3d, cv::NORM_HAMMING), 0.0);
+  std::vector<bool> is_tracked(f.uv.size(), false);
+  for (int r : f.tracked_rows) is_tracked[static_cast<std::size_t>(r)] = true;
+  std::size_t out = 0;
+  int others = 0;
+  for (std::size_t r = 0; r < f.uv.size(); ++r) {
+    if (!is_tracked[r] && others++ >= 30) continue;
+    ASSERT_LT(out, g.uv.size());
+    EXPECT_LT((g.uv[out] - f.uv[r]).norm(), 1e-7) << r;
+    EXPECT_EQ(cv::norm(g.descriptors_2d.row(static_cast<int>(out)), f.descriptors_2d.row(static_cast<int>(r)),
+                       cv::NORM_HAMMING), 0.0);
+    ++out;
+  }
+  EXPECT_EQ(storePlace(f, -1).uv.size(), f.uv.size());
+}
+
 TEST(PlaceStore, KeepsItsOwnDescriptorsWhenTheRowsAreUnknown) {
   const test::WallScene scene;
   PlaceFeatures f = describedWall(scene, test::WallScene::cameraAt(Vec3(0.0, 0.0, 1.2), 0.0));

@@ -33,8 +33,9 @@ struct StoredPlace {
 };
 
 /// The stored form of a final description (depths and line segments set). The tracked corners' ids, copies and
-/// stereo positions and the line ids, which only setPlaceDepths / setPlaceLines need, are not kept.
-StoredPlace storePlace(const PlaceFeatures& f);
+/// stereo positions and the line ids, which only setPlaceDepths / setPlaceLines need, are not kept. Of the detected
+/// corners (those not tracked, strongest first in describePlace), only the first `max_detected` are kept (< 0: all).
+StoredPlace storePlace(const PlaceFeatures& f, int max_detected = -1);
 
 /// The description to match with: storePlace's fields back in double precision (rounded to float once).
 PlaceFeatures expandPlace(const StoredPlace& s);
