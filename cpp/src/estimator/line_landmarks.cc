@@ -172,11 +172,37 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
   return out;
 }
 
+LineLandmarks::StoredMapLine LineLandmarks::StoredMapLine::of(const MapLine& m) {
+  StoredMapLine s;
+  s.id = m.id;
+  s.t_last = m.t_last;
+  for (int i = 0; i < 3; ++i) {
+    s.a[static_cast<std::size_t>(i)] = static_cast<float>(m.a[i]);
+    s.b[static_cast<std::size_t>(i)] = static_cast<float>(m.b[i]);
+  }
+  s.angle_deg = static_cast<float>(m.angle_deg);
+  s.sigma_m = static_cast<float>(m.sigma_m);
+  s.observations = m.observations;
+  return s;
+}
+
+MapLine LineLandmarks::StoredMapLine::line() const {
+  MapLine m;
+  m.id = id;
+  m.a = Vec3(a[0], a[1], a[2]);
+  m.b = Vec3(b[0], b[1], b[2]);
+  m.observations = observations;
+  m.t_last = t_last;
+  m.angle_deg = angle_deg;
+  m.sigma_m = sigma_m;
+  return m;
+}
+
 void LineLandmarks::archive(LineLandmark& lm) {
   if (!lm.triangulated || !lm.has_extent) return;
   const auto at = std::lower_bound(map_.begin(), map_.end(), lm.id,
-                                   [](const MapLine& m, std::int64_t id) { return m.id < id; });
-  MapLine archived = mapLineOf(lm, lm.left_window);
+                                   [](const StoredMapLine& m, std::int64_t id) { return m.id < id; });
+  const StoredMapLine archived = StoredMapLine::of(mapLineOf(lm, lm.left_window));
   if (options_.reidentify && options_.reid_map) map_sightings_[lm.id] = std::move(lm.left_window);
   // Lines leave the window roughly in the order of their ids: the insertion is near the end.
   if (at != map_.end() && at->id == lm.id) {
@@ -457,13 +483,13 @@ std::vector<MapLine> LineLandmarks::mapLines(const Window* window) const {
   std::vector<MapLine> out;
   out.reserve(map_.size() + window_lines.size());
   auto w = window_lines.begin();
-  for (const MapLine& m : map_) {
+  for (const StoredMapLine& m : map_) {
     for (; w != window_lines.end() && w->id < m.id; ++w) out.push_back(*w);
     if (w != window_lines.end() && w->id == m.id) {
       out.push_back(*w);
       ++w;
     } else {
-      out.push_back(m);
+      out.push_back(m.line());
     }
   }
   out.insert(out.end(), w, window_lines.end());

@@ -43,7 +43,7 @@ double LineLandmarks::extentGap(const Vec6& L, const Vec3& ext_a, const Vec3& ex
 }
 
 LineLandmark& LineLandmarks::restore(std::size_t index) {
-  const MapLine m = map_[index];
+  const MapLine m = map_[index].line();
   LineLandmark& lm = landmarks_[m.id];
   lm.id = m.id;
   lm.setL(normalisePlucker(pluckerFromPoints(m.a, m.b)));
@@ -94,7 +94,7 @@ int LineLandmarks::reidentify(const Window& window) {
   }
   if (fresh.empty()) return 0;
   for (std::size_t i = 0; options_.reid_map && i < map_.size(); ++i) {
-    const MapLine& m = map_[i];
+    const MapLine m = map_[i].line();
     const auto sightings = map_sightings_.find(m.id);
     if (sightings == map_sightings_.end() || sightings->second.empty() || landmarks_.count(m.id)) continue;
     const double za = (*c0 * m.a).z(), zb = (*c0 * m.b).z();
