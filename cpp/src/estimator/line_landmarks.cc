@@ -143,7 +143,7 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
     if (!usable(lm)) continue;
     if (host_only >= 0 && lm.obs.begin()->first != host_only) continue;
     const std::int64_t key = lineBlockKey(id);
-    for (auto& [fid, o] : lm.obs) {
+    for (const auto& [fid, o] : lm.obs) {
       WindowFrame* f = const_cast<Window&>(window).find(fid);
       if (f == nullptr) continue;
       double s = sqrt_info;
@@ -154,10 +154,7 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
       auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C, bool cam1) {
         ResidualSpec r;
         if (cam1) r.cam1 = 0;
-        const Pose T_B_Cs = f->capture_shift * T_B_C;
-        CostCache<12>::Key k;
-        *putPose(T_B_Cs, putVec2(b, putVec2(a, k.data()))) = s;
-        r.cost = o.costs[cam1 ? 1 : 0].get(k, [&] { return std::make_shared<LineReprojectionFactor>(a, b, T_B_Cs, s); });
+        r.cost = std::make_shared<LineReprojectionFactor>(a, b, f->capture_shift * T_B_C, s);
         r.robust = true;
         r.line = true;
         r.blocks = {f->pose.data(), lm.plucker.data()};

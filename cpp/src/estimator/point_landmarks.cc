@@ -82,41 +82,22 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
     const auto w = frame_weight.find(f);
     return w == frame_weight.end() ? base_sqrt_info : base_sqrt_info * std::sqrt(w->second);
   };
-  // A reprojection residual's cost function: from the cache of observation o's slot when built from the same values.
-  const auto reprojection = [](PointFrameObs& o, int slot, FrameId host_id, const Vec2& uv_host, const Vec2& uv,
-                               const Pose& T_B_Ch, const Pose& T_B_C, double sqrt_info) {
-    CostCache<20>::Key key;
-    key[0] = static_cast<double>(host_id);
-    double* k = putVec2(uv, putVec2(uv_host, key.data() + 1));
-    k = putPose(T_B_C, putPose(T_B_Ch, k));
-    *k = sqrt_info;
-    return o.costs[static_cast<std::size_t>(slot)].get(key, [&] {
-      return std::make_shared<PointReprojectionFactor>(uv_host, uv, T_B_Ch, T_B_C, sqrt_info);
-    });
-  };
   for (auto& [id, lm] : landmarks_) {
     if (host_only < 0) lm.used = false;
     if (!usable(lm)) continue;
     if (host_only >= 0 && lm.host != host_only) continue;
     WindowFrame* host = const_cast<Window&>(window).find(lm.host);
     if (host == nullptr) continue;
-    PointFrameObs& ho = lm.obs.at(lm.host);
+    const PointFrameObs& ho = lm.obs.at(lm.host);
     const std::int64_t lm_key = pointBlockKey(id);
-    for (auto& [fid, o] : lm.obs) {
+    for (const auto& [fid, o] : lm.obs) {
       WindowFrame* f = const_cast<Window&>(window).find(fid);
       if (f == nullptr) continue;
       if (fid == lm.host) {
         if (!ho.has_right) continue;
         // Kind 3: left -> right in the host frame; constrains the inverse depth only.
         ResidualSpec r;
-        const double sqrt_info = sqrtInfo(fid);
-        CostCache<20>::Key key;
-        key[0] = -1.0;  // the stereo residual's slot tag (a host id is >= 0)
-        double* k = putPose(*T_B_C1_, putPose(T_B_C0_, putVec2(ho.uv1, putVec2(ho.uv0, key.data() + 1))));
-        *k = sqrt_info;
-        r.cost = ho.costs[0].get(key, [&] {  // no capture shift
-          return std::make_shared<PointStereoFactor>(ho.uv0, ho.uv1, T_B_C0_, *T_B_C1_, sqrt_info);
-        });
+        r.cost = std::make_shared<PointStereoFactor>(ho.uv0, ho.uv1, T_B_C0_, *T_B_C1_, sqrtInfo(fid));  // no shift
         r.robust = true;
         r.blocks = {&lm.inv_depth};
         r.keys = {lm_key};
@@ -128,14 +109,15 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
       const double sqrt_info = sqrtInfo(fid);
       ResidualSpec r1;
       const Pose T_B_Ch = host->capture_shift * T_B_C0_;
-      r1.cost = reprojection(o, 0, lm.host, ho.uv0, o.uv0, T_B_Ch, f->capture_shift * T_B_C0_, sqrt_info);
+      r1.cost = std::make_shared<PointReprojectionFactor>(ho.uv0, o.uv0, T_B_Ch, f->capture_shift * T_B_C0_, sqrt_info);
       r1.robust = true;
       r1.blocks = {host->pose.data(), f->pose.data(), &lm.inv_depth};
       r1.keys = {frameBlockKey(lm.host, BlockKind::kPose), frameBlockKey(fid, BlockKind::kPose), lm_key};
       if (o.has_right && (all_right || options_.right_residuals_all_frames)) {
         // Kind 2: host cam0 -> this frame's cam1.
         ResidualSpec r2;
-        r2.cost = reprojection(o, 1, lm.host, ho.uv0, o.uv1, T_B_Ch, f->capture_shift * *T_B_C1_, sqrt_info);
+        r2.cost =
+            std::make_shared<PointReprojectionFactor>(ho.uv0, o.uv1, T_B_Ch, f->capture_shift * *T_B_C1_, sqrt_info);
         r2.robust = true;
         r2.blocks = r1.blocks;
         r2.keys = r1.keys;

@@ -6,7 +6,6 @@
 
 #include "estimator/synthetic_vio.h"
 #include "linnet/core/error.h"
-#include "linnet/estimator/factors/point_factors.h"
 #include "linnet/estimator/factors/prior_factor.h"
 #include "linnet/estimator/initial_prior.h"
 #include "linnet/estimator/keyframe_policy.h"
@@ -198,58 +197,6 @@ TEST(PointLandmarks, StereoTriangulationReanchoringAndResidualKinds) {
   const PointLandmark& lm = lms.all().at(42);
   EXPECT_EQ(lm.host, w[1].id);
   EXPECT_LT((lms.worldPosition(w, lm) - p_W).norm(), 1e-6);
-}
-
-// Residuals built again from the same observations, extrinsics and weights reuse their cost functions (cost_cache.h);
-// a change of any of them builds new ones, which evaluate as freshly built factors do.
-TEST(PointLandmarks, ResidualsReuseTheirCostFunctionsWhileTheirValuesStay) {
-  const Pose T_B_C0 = eurocTBC0(), T_B_C1 = eurocTBC1();
-  Window w;
-  w.push(0).setPose(Pose(Quat::Identity(), Vec3::Zero()));
-  w.push(1).setPose(Pose(expSO3(Vec3(0.0, 0.05, 0.0)), Vec3(0.0, 0.3, 0.0)));
-  const Vec3 p_W(0.3, -0.2, 5.0);
-  auto observation = [&](const WindowFrame& f) {
-    PointObservation o;
-    o.id = 7;
-    const Vec3 c0 = (f.T_W_B() * T_B_C0).inverse() * p_W, c1 = (f.T_W_B() * T_B_C1).inverse() * p_W;
-    o.uv0 = c0.head<2>() / c0.z() + Vec2(1e-3, -2e-3);
-    o.has_right = true;
-    o.uv1 = c1.head<2>() / c1.z();
-    return std::vector<PointObservation>{o};
-  };
-  SolverOptions so;
-  so.right_residuals_all_frames = true;
-  PointLandmarks lms(so, T_B_C0, T_B_C1);
-  lms.observe(w[0].id, observation(w[0]));
-  ASSERT_EQ(lms.triangulate(w), 1);
-  lms.observe(w[1].id, observation(w[1]));
-  const std::vector<ResidualSpec> a = lms.residuals(w), b = lms.residuals(w);
-  ASSERT_EQ(a.size(), 3u);
-  ASSERT_EQ(b.size(), 3u);
-  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].cost.get(), b[i].cost.get()) << i;
-  // A weight, then the extrinsics: new cost functions, the same as built without the cache.
-  const std::vector<ResidualSpec> weighted = lms.residuals(w, -1, false, {{w[1].id, 0.25}});
-  EXPECT_EQ(weighted[0].cost.get(), a[0].cost.get()) << "the host's stereo residual keeps its weight";
-  EXPECT_NE(weighted[1].cost.get(), a[1].cost.get());
-  const Pose moved = T_B_C0 * Pose(expSO3(Vec3(0.002, -0.001, 0.003)), Vec3(0.001, 0.0, -0.002));
-  lms.setExtrinsics(moved, T_B_C1);
-  const std::vector<ResidualSpec> c = lms.residuals(w);
-  ASSERT_EQ(c.size(), 3u);
-  const PointLandmark& lm = lms.all().at(7);
-  const PointFrameObs &o0 = lm.obs.at(w[0].id), &o1 = lm.obs.at(w[1].id);
-  const double sqrt_info = pointSqrtInformation(so.focal_length, so.pixel_sigma);
-  const Pose T_B_Ch = w[0].capture_shift * moved;  // as the window builds them
-  const PointStereoFactor stereo(o0.uv0, o0.uv1, moved, T_B_C1, sqrt_info);
-  const PointReprojectionFactor left(o0.uv0, o1.uv0, T_B_Ch, w[1].capture_shift * moved, sqrt_info);
-  const PointReprojectionFactor right(o0.uv0, o1.uv1, T_B_Ch, w[1].capture_shift * T_B_C1, sqrt_info);
-  const ceres::CostFunction* fresh[3] = {&stereo, &left, &right};
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    EXPECT_NE(c[i].cost.get(), a[i].cost.get()) << i;
-    Vec2 got, want;
-    ASSERT_TRUE(c[i].cost->Evaluate(c[i].blocks.data(), got.data(), nullptr));
-    ASSERT_TRUE(fresh[i]->Evaluate(c[i].blocks.data(), want.data(), nullptr));
-    EXPECT_EQ(got, want) << i;
-  }
 }
 
 }  // namespace

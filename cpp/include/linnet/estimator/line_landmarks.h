@@ -19,7 +19,6 @@
 #include "linnet/core/frame_observations.h"
 #include "linnet/core/map_line.h"
 #include "linnet/core/pose.h"
-#include "linnet/estimator/cost_cache.h"
 #include "linnet/estimator/estimator_options.h"
 #include "linnet/estimator/line_map_refinement.h"
 #include "linnet/estimator/residual_spec.h"
@@ -32,7 +31,6 @@ struct LineFrameObs {
   Vec2 s0 = Vec2::Zero(), e0 = Vec2::Zero();  // normalised endpoints, cam0
   bool has_right = false;
   Vec2 s1 = Vec2::Zero(), e1 = Vec2::Zero();  // normalised endpoints, cam1
-  std::array<CostCache<12>, 2> costs;         // the last cam0 / cam1 residuals built from it (cost_cache.h)
 };
 
 struct LineLandmark {

@@ -7,7 +7,6 @@
 #pragma once
 
 #include <algorithm>
-#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -15,7 +14,6 @@
 
 #include "linnet/core/frame_observations.h"
 #include "linnet/core/pose.h"
-#include "linnet/estimator/cost_cache.h"
 #include "linnet/estimator/estimator_options.h"
 #include "linnet/estimator/residual_spec.h"
 #include "linnet/estimator/window.h"
@@ -26,9 +24,6 @@ struct PointFrameObs {
   Vec2 uv0 = Vec2::Zero();  // normalised, cam0
   bool has_right = false;
   Vec2 uv1 = Vec2::Zero();  // normalised, cam1
-  // The last residuals built from it (cost_cache.h): [0] the host's stereo residual or this frame's cam0 one, [1]
-  // this frame's cam1 one.
-  std::array<CostCache<20>, 2> costs;
 };
 
 struct PointLandmark {
