@@ -117,7 +117,8 @@ bool LoopCloser::insert(Timestamp t, const Pose& T_W_B, PlaceFeatures place) {
     graph_.addEdge(graph_.odometryEdge(i, k, options_.odometry_sigma_m + options_.odometry_sigma_per_m * length,
                                        options_.odometry_sigma_yaw_deg * kDegToRad));
   }
-  kf.place = storePlace(place, options_.stored_corners);  // the database's copy; the new keyframe is matched at full precision
+  // The database's copy; the new keyframe is matched at full precision.
+  kf.place = storePlace(place, options_.stored_corners);
   keyframes_.push_back(std::move(kf));
   const bool too_soon =
       any_loop_ && inserted_ - 1 - last_loop_keyframe_ < static_cast<std::size_t>(options_.min_keyframes_between_loops);

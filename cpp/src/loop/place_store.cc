@@ -43,7 +43,8 @@ StoredPlace storePlace(const PlaceFeatures& f, int max_detected) {
     s.descriptors_2d = f.descriptors_2d.clone();
   } else {
     s.descriptors_2d.create(static_cast<int>(rows.size()), f.descriptors_2d.cols, f.descriptors_2d.type());
-    for (std::size_t i = 0; i < rows.size(); ++i) f.descriptors_2d.row(rows[i]).copyTo(s.descriptors_2d.row(static_cast<int>(i)));
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      f.descriptors_2d.row(rows[i]).copyTo(s.descriptors_2d.row(static_cast<int>(i)));
   }
   s.p_C.reserve(f.p_C.size());
   for (const Vec3& p : f.p_C) s.p_C.push_back(p.cast<float>());

@@ -53,7 +53,7 @@ void ResultLog::push(const FrameResult& r, const std::optional<Pose>& correction
   rec.rss_mb = static_cast<float>(r.rss_mb);
   records_.push_back(rec);
 
-  const Calibration* last = inForce(calibrations_, i);
+  const Calibration* last = calibrations_.empty() ? nullptr : &calibrations_.back().second;
   if (!last || !samePose(last->T_B_R, e.T_B_R) || !samePose(last->S_C1, e.S_C1) ||
       std::memcmp(&last->time_offset_s, &e.time_offset_s, sizeof(double)) != 0)
     calibrations_.emplace_back(i, Calibration{e.T_B_R, e.S_C1, e.time_offset_s});
