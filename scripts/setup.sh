@@ -9,7 +9,7 @@ if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
 APT_PACKAGES=(build-essential cmake ninja-build ccache pkg-config git
   python3 python3-venv python3-dev
-  libeigen3-dev libceres-dev libopencv-dev libopencv-contrib-dev libyaml-cpp-dev
+  libeigen3-dev libceres-dev libopencv-dev libopencv-contrib-dev libyaml-cpp-dev libpng-dev
   libgtest-dev libgmock-dev libbenchmark-dev valgrind)
 
 missing=()

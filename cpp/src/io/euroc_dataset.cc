@@ -14,6 +14,7 @@
 
 #include "linnet/core/error.h"
 #include "linnet/io/config_yaml.h"
+#include "linnet/io/png_gray.h"
 #include "linnet/io/text_parse.h"
 #include "linnet/io/yaml_values.h"
 
@@ -334,6 +335,17 @@ cv::Mat EurocDataset::loadImage(const std::string& path) {
     if (!file.read(reinterpret_cast<char*>(bytes.get()), size)) io::failInput(path, 0, "cannot read image file");
   }
   cv::Mat img;
+  // Greyscale PNG (every EuRoC and replay image) straight through libpng without its checksums; anything else
+  // through OpenCV's decoders.
+  std::string png_error;
+  switch (decodeGray8Png(bytes.get(), static_cast<std::size_t>(size), &img, &png_error)) {
+    case PngGrayResult::kDecoded:
+      return img;
+    case PngGrayResult::kCorrupt:
+      io::failInput(path, 0, "cannot decode image (PNG: " + png_error + ")");
+    case PngGrayResult::kNotHandled:
+      break;
+  }
   try {
     img = cv::imdecode(cv::Mat(1, static_cast<int>(size), CV_8UC1, bytes.get()), cv::IMREAD_GRAYSCALE);
   } catch (const cv::Exception& e) {
