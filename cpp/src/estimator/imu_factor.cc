@@ -36,19 +36,6 @@ Mat4 rightMultiplication(const Quat& q) { return quatRight(q); }  // (w, x, y, z
 
 }  // namespace
 
-Mat15 sqrtInformationOf(const Mat15& covariance) {
-  if (!covariance.allFinite()) throw UsageError("ImuFactor: preintegration covariance is not finite");
-  const Mat15 sym = 0.5 * (covariance + covariance.transpose());
-  Eigen::SelfAdjointEigenSolver<Mat15> es(sym);
-  const double lmax = es.eigenvalues().maxCoeff();
-  if (!(lmax > 0.0))
-    throw UsageError("ImuFactor: preintegration covariance is zero (empty interval or zero noise)");
-  const Vec15 lambda = es.eigenvalues().cwiseMax(1e-14 * lmax);
-  const Mat15 info = es.eigenvectors() * lambda.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
-  const Eigen::LLT<Mat15> llt(0.5 * (info + info.transpose()));
-  return llt.matrixU();  // info = U^T U
-}
-
 ImuFactor::ImuFactor(const Preintegration& preintegration, const Vec3& g_W)
     : delta_(preintegration.delta()),
       bias_jacobian_(preintegration.jacobian()),
@@ -58,7 +45,7 @@ ImuFactor::ImuFactor(const Preintegration& preintegration, const Vec3& g_W)
       g_W_(g_W) {
   if (preintegration.empty() || !(sum_dt_ > 0.0))
     throw UsageError("ImuFactor: the preintegration is empty (needs at least two samples spanning > 0 s)");
-  sqrt_info_ = sqrtInformationOf(preintegration.covariance());
+  sqrt_info_ = preintegration.sqrtInformation();
 }
 
 ImuFactor::ImuFactor(std::shared_ptr<const Preintegration> preintegration, const Vec3& g_W)

@@ -3,6 +3,9 @@
 
 #include <string>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
 #include "linnet/core/pose.h"
@@ -30,6 +33,28 @@ void Preintegration::reset() {
   sum_dt_ = 0.0;
   jacobian_.setIdentity();
   covariance_.setZero();
+  sqrt_info_valid_ = false;
+}
+
+const Mat15& Preintegration::sqrtInformation() const {
+  if (!sqrt_info_valid_) {
+    sqrt_info_ = sqrtInformationOf(covariance_);
+    sqrt_info_valid_ = true;
+  }
+  return sqrt_info_;
+}
+
+Mat15 sqrtInformationOf(const Mat15& covariance) {
+  if (!covariance.allFinite()) throw UsageError("ImuFactor: preintegration covariance is not finite");
+  const Mat15 sym = 0.5 * (covariance + covariance.transpose());
+  Eigen::SelfAdjointEigenSolver<Mat15> es(sym);
+  const double lmax = es.eigenvalues().maxCoeff();
+  if (!(lmax > 0.0))
+    throw UsageError("ImuFactor: preintegration covariance is zero (empty interval or zero noise)");
+  const Vec15 lambda = es.eigenvalues().cwiseMax(1e-14 * lmax);
+  const Mat15 info = es.eigenvectors() * lambda.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+  const Eigen::LLT<Mat15> llt(0.5 * (info + info.transpose()));
+  return llt.matrixU();  // info = U^T U
 }
 
 void Preintegration::push(const ImuSample& s) {
@@ -115,6 +140,7 @@ void Preintegration::integrateStep(const ImuSample& s0, const ImuSample& s1) {
   covariance_.block<3, 3>(kP, kP).diagonal().array() +=
       options_.integration_noise * options_.integration_noise * dt;
   covariance_ = 0.5 * (covariance_ + covariance_.transpose()).eval();
+  sqrt_info_valid_ = false;
   jacobian_ = F * jacobian_;
 
   delta_.alpha += delta_.beta * dt + 0.5 * acc_mid * dt2;

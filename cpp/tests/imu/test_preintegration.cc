@@ -246,6 +246,31 @@ TEST(Preintegration, RepropagateAndBiasMovedFar) {
   EXPECT_LT((pred.T_W_B.p - m.position(0.5)).norm(), 1e-4);
 }
 
+TEST(Preintegration, SqrtInformationFollowsEveryChangeOfTheCovariance) {
+  const testing::SmoothMotion m;
+  const ImuNoise noise;
+  const Vec3 b_a(0.05, 0.0, -0.02), b_g(0.0, 0.004, 0.0);
+  const auto samples = m.samples(0, 300 * kMs, 5 * kMs, b_a, b_g);
+  Preintegration pre(std::vector<ImuSample>(samples.begin(), samples.begin() + 30), noise, Vec3::Zero(),
+                     Vec3::Zero());
+  const auto expectFresh = [&](const char* after) {
+    const Mat15 fresh = sqrtInformationOf(pre.covariance());
+    EXPECT_EQ(pre.sqrtInformation(), fresh) << after;  // the same computation: bit for bit
+    // S^T S is the information matrix.
+    const Mat15 info = pre.covariance().inverse();
+    EXPECT_LT((fresh.transpose() * fresh - info).norm(), 1e-6 * info.norm()) << after;
+  };
+  expectFresh("construction");
+  pre.push(samples[30]);  // the cached value of before must not survive a new sample
+  expectFresh("push");
+  pre.repropagate(b_a, b_g);
+  expectFresh("repropagate");
+  pre.append(Preintegration(std::vector<ImuSample>(samples.begin() + 30, samples.end()), noise, b_a, b_g));
+  expectFresh("append");
+  const Preintegration copy = pre;
+  EXPECT_EQ(copy.sqrtInformation(), pre.sqrtInformation());
+}
+
 TEST(Preintegration, PushRejectsTimeGoingBackwardsAndIgnoresDuplicates) {
   Preintegration pre(ImuNoise(), Vec3::Zero(), Vec3::Zero());
   EXPECT_TRUE(pre.empty());

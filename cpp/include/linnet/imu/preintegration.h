@@ -118,6 +118,9 @@ class Preintegration {
   const Quat& gamma() const { return delta_.gamma; }
   const Mat15& jacobian() const { return jacobian_; }
   const Mat15& covariance() const { return covariance_; }
+  /// sqrtInformationOf(covariance()), computed once per covariance (the window's solves build a factor from each
+  /// preintegration every frame; the 15 x 15 eigen-decomposition was most of that).
+  const Mat15& sqrtInformation() const;
   const Vec3& linearisedBa() const { return b_a_; }
   const Vec3& linearisedBg() const { return b_g_; }
   const ImuNoise& noise() const { return noise_; }
@@ -135,6 +138,12 @@ class Preintegration {
   double sum_dt_ = 0.0;
   Mat15 jacobian_ = Mat15::Identity();
   Mat15 covariance_ = Mat15::Zero();
+  mutable Mat15 sqrt_info_;                // cache of sqrtInformation()
+  mutable bool sqrt_info_valid_ = false;  // reset whenever the covariance changes
 };
+
+/// Upper-triangular S with S^T S = covariance^-1 (eigenvalues below 1e-14 of the largest are floored there).
+/// Throws UsageError if the covariance is not finite or is zero.
+Mat15 sqrtInformationOf(const Mat15& covariance);
 
 }  // namespace linnet

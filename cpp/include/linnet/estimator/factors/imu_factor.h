@@ -54,8 +54,4 @@ class ImuFactor : public ceres::SizedCostFunction<15, 7, 9, 7, 9> {
   Mat15 sqrt_info_;
 };
 
-/// Upper-triangular S with S^T S = covariance^-1 (eigenvalues below 1e-14 of the largest are floored there).
-/// Throws UsageError if the covariance is not finite or is zero.
-Mat15 sqrtInformationOf(const Mat15& covariance);
-
 }  // namespace linnet
