@@ -161,31 +161,47 @@ void EdgeDrawing::link() {
 void EdgeDrawing::walk(int x, int y, int dx, int dy, std::vector<cv::Point>* out) {
   const int cols = px_.cols;
   std::uint16_t* px = px_.ptr<std::uint16_t>(0);
+  // The position as an index and the direction as two offsets (one step on, one step sideways), kept up to date as
+  // the walk turns, so that a step costs no multiplication and reads each word once.
+  int at = y * cols + x;
+  int forward = dy * cols + dx, across = dx == 0 ? 1 : cols;
   for (;;) {
     // The three pixels ahead: straight on first, so that it wins ties, then side -1, then side +1 (a later one wins
     // only when strictly stronger). Selected without branches: which neighbour wins is unpredictable.
-    const int ahead = (y + dy) * cols + (x + dx);
-    const int across = dx == 0 ? 1 : cols;  // one step sideways
-    const int g0 = magnitude(px[ahead]), gm = magnitude(px[ahead - across]), gp = magnitude(px[ahead + across]);
-    int best_side = 0, best_g = g0;
-    best_side = gm > best_g ? -1 : best_side;
-    best_g = std::max(best_g, gm);
-    best_side = gp > best_g ? 1 : best_side;
-    best_g = std::max(best_g, gp);
-    const int best = ahead + best_side * across;
-    if (best_g == 0 || (px[best] & kEdgeBit)) return;  // below threshold, or ran into a chain already drawn
-    x += dx + (dx == 0 ? best_side : 0);
-    y += dy + (dy == 0 ? best_side : 0);
-    px[best] |= kEdgeBit;
+    const int ahead = at + forward;
+    const std::uint16_t w0 = px[ahead], wm = px[ahead - across], wp = px[ahead + across];
+    const int g0 = magnitude(w0), gm = magnitude(wm), gp = magnitude(wp);
+    int side = 0, g = g0;
+    std::uint16_t w = w0;
+    side = gm > g ? -1 : side;
+    w = gm > g ? wm : w;
+    g = std::max(g, gm);
+    side = gp > g ? 1 : side;
+    w = gp > g ? wp : w;
+    g = std::max(g, gp);
+    if (g == 0 || (w & kEdgeBit)) return;  // below threshold, or ran into a chain already drawn
+    at = ahead + side * across;
+    px[at] = static_cast<std::uint16_t>(w | kEdgeBit);
+    if (dx == 0) {
+      x += side;
+      y += dy;
+    } else {
+      x += dx;
+      y += side;
+    }
     out->emplace_back(x, y);
     // The edge turned: continue along its new orientation, away from where the step came from.
-    const bool vertical = (px[best] & kDirBit) != 0;
+    const bool vertical = (w & kDirBit) != 0;
     if (vertical && dx != 0) {
-      dy = best_side != 0 ? best_side : (magnitude(px[best - cols]) >= magnitude(px[best + cols]) ? -1 : 1);
+      dy = side != 0 ? side : (magnitude(px[at - cols]) >= magnitude(px[at + cols]) ? -1 : 1);
       dx = 0;
+      forward = dy * cols;
+      across = 1;
     } else if (!vertical && dy != 0) {
-      dx = best_side != 0 ? best_side : (magnitude(px[best - 1]) >= magnitude(px[best + 1]) ? -1 : 1);
+      dx = side != 0 ? side : (magnitude(px[at - 1]) >= magnitude(px[at + 1]) ? -1 : 1);
       dy = 0;
+      forward = dx;
+      across = cols;
     }
   }
 }
