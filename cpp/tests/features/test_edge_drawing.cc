@@ -208,6 +208,96 @@ TEST(EdgeDrawing, SlidingFitEqualsThePlainFitBitForBit) {
   }
 }
 
+// The plain Edge Drawing linking (Topal & Akinlar 2012) on separate magnitude, direction and edge images, with (x, y)
+// positions: the detector's packed words, anchor bit scan, counting sort and index walk must give exactly its chains.
+std::vector<std::vector<cv::Point>> plainChains(const cv::Mat& gray, const EdgeDrawingOptions& o) {
+  cv::Mat smooth = gray, gx, gy;
+  if (o.sigma > 0.0) {
+    const int k = 2 * static_cast<int>(std::ceil(2.0 * o.sigma)) + 1;
+    cv::GaussianBlur(gray, smooth, cv::Size(k, k), o.sigma, o.sigma, cv::BORDER_REPLICATE);
+  }
+  cv::Sobel(smooth, gx, CV_16S, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(smooth, gy, CV_16S, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  const int rows = gray.rows, cols = gray.cols;
+  cv::Mat mag(rows, cols, CV_32S, cv::Scalar(0)), vert(rows, cols, CV_8U, cv::Scalar(0)),
+      edge(rows, cols, CV_8U, cv::Scalar(0));
+  for (int y = 1; y < rows - 1; ++y)
+    for (int x = 1; x < cols - 1; ++x) {
+      const int ax = std::abs(gx.at<short>(y, x)), ay = std::abs(gy.at<short>(y, x));
+      mag.at<int>(y, x) = ax + ay >= o.gradient_threshold ? ax + ay : 0;
+      vert.at<uchar>(y, x) = ax >= ay;
+    }
+  const auto m = [&](int x, int y) { return mag.at<int>(y, x); };
+  // Anchors: ridge points across the edge on the scan grid, strongest first, ties in raster order.
+  const int step = std::max(1, o.scan_interval), A = o.anchor_threshold;
+  std::vector<std::pair<int, cv::Point>> anchors;
+  for (int y = 1; y < rows - 1; y += step)
+    for (int x = step; x < cols - 1; x += step) {
+      const int g = m(x, y);
+      const bool ridge = vert.at<uchar>(y, x) ? g - m(x - 1, y) >= A && g - m(x + 1, y) >= A
+                                              : g - m(x, y - 1) >= A && g - m(x, y + 1) >= A;
+      if (g != 0 && ridge) anchors.push_back({g, cv::Point(x, y)});
+    }
+  std::stable_sort(anchors.begin(), anchors.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  const auto walk = [&](int x, int y, int dx, int dy, std::vector<cv::Point>* out) {
+    for (;;) {
+      // Straight on, then the side -1, then +1; a later candidate wins only when strictly stronger.
+      const int ax = x + dx, ay = y + dy, sx = dx == 0 ? 1 : 0, sy = dx == 0 ? 0 : 1;
+      int side = 0, best = m(ax, ay);
+      for (int s : {-1, 1})
+        if (m(ax + s * sx, ay + s * sy) > best) {
+          side = s;
+          best = m(ax + s * sx, ay + s * sy);
+        }
+      const int nx = ax + side * sx, ny = ay + side * sy;
+      if (best == 0 || edge.at<uchar>(ny, nx)) return;
+      x = nx;
+      y = ny;
+      edge.at<uchar>(y, x) = 1;
+      out->emplace_back(x, y);
+      if (vert.at<uchar>(y, x) && dx != 0) {
+        dy = side != 0 ? side : (m(x, y - 1) >= m(x, y + 1) ? -1 : 1);
+        dx = 0;
+      } else if (!vert.at<uchar>(y, x) && dy != 0) {
+        dx = side != 0 ? side : (m(x - 1, y) >= m(x + 1, y) ? -1 : 1);
+        dy = 0;
+      }
+    }
+  };
+  std::vector<std::vector<cv::Point>> chains;
+  for (const auto& [g, a] : anchors) {
+    if (edge.at<uchar>(a.y, a.x)) continue;
+    edge.at<uchar>(a.y, a.x) = 1;
+    std::vector<cv::Point> back, ahead;
+    const bool v = vert.at<uchar>(a.y, a.x);
+    walk(a.x, a.y, v ? 0 : -1, v ? -1 : 0, &back);
+    walk(a.x, a.y, v ? 0 : 1, v ? 1 : 0, &ahead);
+    if (back.size() + ahead.size() + 1 < static_cast<std::size_t>(std::max(2, o.min_line_px))) continue;
+    std::vector<cv::Point> chain(back.rbegin(), back.rend());
+    chain.push_back(a);
+    chain.insert(chain.end(), ahead.begin(), ahead.end());
+    chains.push_back(std::move(chain));
+  }
+  return chains;
+}
+
+TEST(EdgeDrawing, ChainsEqualThePlainLinking) {
+  EdgeDrawingOptions shipped;  // the line front-end's settings (config: lines.detection.ed_*)
+  shipped.anchor_threshold = 8;
+  shipped.scan_interval = 2;
+  shipped.min_line_px = 17;
+  for (const EdgeDrawingOptions& opt : {EdgeDrawingOptions{}, shipped}) {
+    EdgeDrawing ed(opt);
+    for (int seed : {1, 2, 3}) {
+      std::vector<cv::Vec4f> lines;
+      const cv::Mat img = clutter(480, 752, seed);
+      ed.detect(img, &lines);
+      ASSERT_GT(ed.chains().size(), 50u);
+      EXPECT_EQ(ed.chains(), plainChains(img, opt)) << "seed " << seed << ", scan interval " << opt.scan_interval;
+    }
+  }
+}
+
 TEST(EdgeDrawing, ReusedDetectorGivesWhatAFreshOneGives) {
   // Scratch kept from a larger image (chains, anchor buffers, the ridge row) must not change a smaller one's result.
   EdgeDrawing reused{EdgeDrawingOptions{}};
