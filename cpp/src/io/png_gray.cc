@@ -90,8 +90,17 @@ PngGrayResult decodeGray8Png(const unsigned char* data, std::size_t size, cv::Ma
   }
   if (h.bit_depth != 8 || h.color_type != PNG_COLOR_TYPE_GRAY || h.interlace != PNG_INTERLACE_NONE || h.transparency)
     return PngGrayResult::kNotHandled;
-  if (h.width == 0 || h.height == 0 || h.width > (1u << 20) || h.height > (1u << 20)) {
+  // Sizes checked before the allocation: at most 2^30 pixels (OpenCV's decoders' default bound), and no more than
+  // deflate can have packed into this file (at most 1032 bytes out per byte in, each row one filter byte longer).
+  const double pixels = static_cast<double>(h.width) * static_cast<double>(h.height);
+  const double packed = (static_cast<double>(h.width) + 1.0) * static_cast<double>(h.height);
+  if (h.width == 0 || h.height == 0 || h.width > (1u << 20) || h.height > (1u << 20) || pixels > 1073741824.0) {
     *error = "image size " + std::to_string(h.width) + " x " + std::to_string(h.height) + " out of range";
+    return PngGrayResult::kCorrupt;
+  }
+  if (packed > 1032.0 * static_cast<double>(size)) {
+    *error = "image size " + std::to_string(h.width) + " x " + std::to_string(h.height) + " needs more data than the " +
+             std::to_string(size) + " bytes of the file";
     return PngGrayResult::kCorrupt;
   }
   cv::Mat out(static_cast<int>(h.height), static_cast<int>(h.width), CV_8UC1);

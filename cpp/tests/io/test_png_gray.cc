@@ -1,4 +1,5 @@
 // The direct greyscale PNG decoder against OpenCV's, on encoded images of every kind it handles or hands back.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -80,6 +81,26 @@ TEST(PngGray, ReportsBrokenFiles) {
   EXPECT_EQ(decode(garbage, &out, &error), PngGrayResult::kCorrupt);
   EXPECT_FALSE(error.empty());
   EXPECT_TRUE(out.empty());
+}
+
+TEST(PngGray, RejectsSizesTheFileCannotHold) {
+  // A valid header claiming 65535 x 65535 pixels, then the start of a small image's data: refused before any
+  // allocation of 4 GB.
+  std::vector<unsigned char> png = encode(noiseImage(8, 8, CV_8UC1, 5));
+  const auto put32 = [&](std::size_t at, std::uint32_t v) {
+    for (int k = 0; k < 4; ++k) png[at + static_cast<std::size_t>(k)] = static_cast<unsigned char>(v >> (24 - 8 * k));
+  };
+  put32(16, 65535);  // IHDR width (the CRC is not checked)
+  put32(20, 65535);  // IHDR height
+  cv::Mat out;
+  std::string error;
+  EXPECT_EQ(decode(png, &out, &error), PngGrayResult::kCorrupt);
+  EXPECT_NE(error.find("65535 x 65535"), std::string::npos) << error;
+  put32(16, 2000);  // 2000 x 2000 from a file of a hundred-odd bytes: more than deflate can pack into it
+  put32(20, 2000);
+  error.clear();
+  EXPECT_EQ(decode(png, &out, &error), PngGrayResult::kCorrupt);
+  EXPECT_NE(error.find("needs more data"), std::string::npos) << error;
 }
 
 }  // namespace
