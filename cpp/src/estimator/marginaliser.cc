@@ -11,6 +11,8 @@
 #include <Eigen/Dense>
 
 #include "linnet/core/error.h"
+#include "linnet/estimator/factors/tangent_jacobians.h"
+#include "linnet/estimator/manifolds.h"
 
 namespace linnet {
 namespace {
@@ -142,6 +144,7 @@ void Marginaliser::addParameterBlock(BlockKey key, const double* values, int amb
   b.ambient_size = ambient_size;
   b.tangent_size = manifold != nullptr ? manifold->TangentSize() : ambient_size;
   b.manifold = manifold;
+  b.pose = ambient_size == kPoseAmbientSize && dynamic_cast<const PoseManifold*>(manifold) != nullptr;
   b.order = static_cast<int>(blocks_.size());
   blocks_.emplace(key, std::move(b));
 }
@@ -168,7 +171,8 @@ void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres:
                        std::to_string(it->second.ambient_size) + " but the cost function's block " +
                        std::to_string(k) + " has size " + std::to_string(sizes[k]));
   }
-  residuals_.push_back(Residual{std::move(cost), loss, std::move(keys)});
+  const auto* tangent = dynamic_cast<const TangentJacobians*>(cost.get());
+  residuals_.push_back(Residual{std::move(cost), loss, std::move(keys), tangent});
 }
 
 std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std::vector<BlockKey>& drop) {
@@ -227,6 +231,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<double*> jac_ptr;
   std::vector<Eigen::MatrixXd> J;
   std::vector<int> res_offset;
+  std::vector<unsigned char> tangent_given;
   RowMatrix plus;
   Eigen::VectorXd r;
   for (const Residual* res : used) {
@@ -236,17 +241,24 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     jac_amb.resize(nb);
     jac_ptr.assign(nb, nullptr);
     res_offset.assign(nb, -1);
+    // A TangentJacobians factor gives its pose blocks' Jacobians in the tangent space: they are used as they come
+    // (Ceres' ambient ones would be converted there and back).
+    tangent_given.assign(nb, 0);
     for (std::size_t k = 0; k < nb; ++k) {
       const Block& b = blocks_.at(res->keys[k]);
       params[k] = b.values.data();
       if (!b.constant) {
-        jac_amb[k].resize(nr, b.ambient_size);
+        tangent_given[k] = res->tangent != nullptr && b.pose;
+        jac_amb[k].resize(nr, tangent_given[k] ? b.tangent_size : b.ambient_size);
         jac_ptr[k] = jac_amb[k].data();
         res_offset[k] = offset.at(res->keys[k]);
       }
     }
     r.resize(nr);
-    if (!res->cost->Evaluate(params.data(), r.data(), jac_ptr.data()))
+    const bool evaluated = res->tangent != nullptr
+                               ? res->tangent->evaluateTangentSpace(params.data(), r.data(), jac_ptr.data())
+                               : res->cost->Evaluate(params.data(), r.data(), jac_ptr.data());
+    if (!evaluated)
       throw InputError("Marginaliser::marginalise: a cost function over " + keyName(res->keys.front()) +
                        " failed to evaluate at the linearisation point");
     // Tangent Jacobian per non-constant block.
@@ -258,7 +270,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
         J[k].resize(0, 0);
         continue;
       }
-      if (b.manifold == nullptr) {
+      if (b.manifold == nullptr || tangent_given[k]) {
         J[k] = jac_amb[k];
       } else {
         plus.resize(b.ambient_size, b.tangent_size);

@@ -241,6 +241,39 @@ TEST(MarginaliserLines, PriorIsTheSchurComplementOfTheFullSystem) {
       << (g_red - gS).cwiseAbs().maxCoeff() << " of " << g.cwiseAbs().maxCoeff();
 }
 
+// A factor seen only through ceres::CostFunction::Evaluate (ambient pose Jacobians): the marginaliser's plain path.
+class AmbientOnly final : public ceres::CostFunction {
+ public:
+  explicit AmbientOnly(std::shared_ptr<ceres::CostFunction> inner) : inner_(std::move(inner)) {
+    set_num_residuals(inner_->num_residuals());
+    *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    return inner_->Evaluate(parameters, residuals, jacobians);
+  }
+
+ private:
+  std::shared_ptr<ceres::CostFunction> inner_;
+};
+
+TEST(MarginaliserLines, TangentJacobiansGiveThePriorOfTheAmbientPath) {
+  // The visual factors hand the marginaliser their pose Jacobians in the tangent space; the same factors behind
+  // Ceres' ambient interface (converted there and back through PlusJacobian) must give the same prior.
+  for (unsigned seed : {33u, 34u}) {
+    Scene tangent(seed), ambient(seed);
+    for (Term& t : ambient.terms) t.cost = std::make_shared<AmbientOnly>(t.cost);
+    MarginalisationStats st, sa;
+    const auto pt = tangent.marginalise(&st);
+    const auto pa = ambient.marginalise(&sa);
+    ASSERT_TRUE(pt && pa);
+    ASSERT_EQ(pt->keys, pa->keys);
+    const Eigen::MatrixXd Ht = pt->J.transpose() * pt->J, Ha = pa->J.transpose() * pa->J;
+    const Eigen::VectorXd gt = pt->J.transpose() * pt->r, ga = pa->J.transpose() * pa->r;
+    EXPECT_LT((Ht - Ha).cwiseAbs().maxCoeff(), 1e-9 * Ha.cwiseAbs().maxCoeff()) << "seed " << seed;
+    EXPECT_LT((gt - ga).cwiseAbs().maxCoeff(), 1e-9 * ga.cwiseAbs().maxCoeff()) << "seed " << seed;
+  }
+}
+
 TEST(MarginaliserLines, ReducedProblemKeepsTheBatchMinimum) {
   Scene sc(32);
   sc.solve(sc.terms);  // the batch optimum x*

@@ -33,6 +33,7 @@
 #include <ceres/manifold.h>
 
 #include "linnet/estimator/factors/prior_factor.h"
+#include "linnet/estimator/factors/tangent_jacobians.h"
 
 namespace linnet {
 
@@ -99,11 +100,13 @@ class Marginaliser {
     const ceres::Manifold* manifold = nullptr;
     int order = 0;  // registration order
     bool constant = false;
+    bool pose = false;  // 7 values on PoseManifold: a TangentJacobians factor gives its Jacobian in the tangent space
   };
   struct Residual {
     std::shared_ptr<ceres::CostFunction> cost;
     ceres::LossFunction* loss = nullptr;
     std::vector<BlockKey> keys;
+    const TangentJacobians* tangent = nullptr;  // cost, when it gives tangent-space Jacobians
   };
 
   /// `dropped` reordered so that the first *num_decoupled blocks share no residual (block-diagonal H_PP).
