@@ -17,32 +17,32 @@ LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, con
       t_B_C_(T_B_C.p),
       sqrt_info_(sqrt_info) {}
 
-void LineReprojectionFactor::poseTerms(const Pose& T_W_B, bool with_K, PoseTerms* terms) const {
+void LineReprojectionFactor::poseTerms(const Pose& T_W_B, PoseTerms* terms) const {
   terms->Rt = T_W_B.R().transpose();
   terms->p = T_W_B.p;
-  terms->has_K = with_K;
-  // d (n_B - t x v_B) / d v_W through d n_B / d v_W = -R^T [p]x and d v_B / d v_W = R^T (see evaluateWith).
-  if (with_K) terms->K = -terms->Rt * skew(terms->p) - skew(t_B_C_) * terms->Rt;
+  // The image line is linear in L_W: l = R_C_B (n_B - t x v_B) = M_n n_W + M_v v_W, with n_B = R^T (n_W - p x v_W)
+  // and v_B = R^T v_W, so M_n = R_C_B R^T and M_v = R_C_B K, K = -R^T [p]x - [t]x R^T.
+  const Mat3 K = -terms->Rt * skew(terms->p) - skew(t_B_C_) * terms->Rt;
+  terms->M_n = R_C_B_ * terms->Rt;
+  terms->M_v = R_C_B_ * K;
 }
 
 bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual,
                                       Eigen::Matrix<double, 2, 6>* J_pose, Eigen::Matrix<double, 2, 6>* J_line) const {
   PoseTerms terms;
-  poseTerms(T_W_B, J_line != nullptr, &terms);
+  poseTerms(T_W_B, &terms);
   return evaluateWith(terms, L_W, residual, J_pose, J_line);
 }
 
 bool LineReprojectionFactor::evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2* residual,
                                           Eigen::Matrix<double, 2, 6>* J_pose,
                                           Eigen::Matrix<double, 2, 6>* J_line) const {
-  // Plücker W -> B -> C:  n_B = R^T (n_W - p x v_W), v_B = R^T v_W;  n_C = R_C_B (n_B - t_B_C x v_B).
+  // Plücker W -> B -> C:  n_B = R^T (n_W - p x v_W), v_B = R^T v_W;  n_C = R_C_B (n_B - t_B_C x v_B), which is
+  // M_n n_W + M_v v_W (poseTerms).
   const Mat3& Rt = terms.Rt;
   const Vec3 n_W = L_W.head<3>(), v_W = L_W.tail<3>();
-  const Vec3 n_B = Rt * (n_W - terms.p.cross(v_W));
-  const Vec3 v_B = Rt * v_W;
-  const Mat3& R_C_B = R_C_B_;
   const Vec3& t = t_B_C_;
-  const Vec3 l = R_C_B * (n_B - t.cross(v_B));  // image line, normalised coordinates
+  const Vec3 l = terms.M_n * n_W + terms.M_v * v_W;  // image line, normalised coordinates
   const double ln2 = l.x() * l.x() + l.y() * l.y();
   if (!(ln2 > 1e-30)) return false;
   const double ln = std::sqrt(ln2);
@@ -58,17 +58,19 @@ bool LineReprojectionFactor::evaluateWith(const PoseTerms& terms, const Vec6& L_
   A.row(0) = (s_ / ln - ds / (ln2 * ln) * l12).transpose();
   A.row(1) = (e_ / ln - de / (ln2 * ln) * l12).transpose();
   A *= sqrt_info_;
-  const Eigen::Matrix<double, 2, 3> A_B = A * R_C_B;  // d r / d(n_B - t x v_B)
   if (J_pose != nullptr) {
     // p <- p + dp:             d n_B / dp = R^T [v_W]x,  d v_B / dp = 0.
     // R <- R Exp(dtheta):      R^T -> (I - [dtheta]x) R^T, so d n_B / dtheta = [n_B]x, d v_B / dtheta = [v_B]x.
-    J_pose->leftCols<3>() = A_B * Rt * skew(v_W);
+    const Vec3 n_B = Rt * (n_W - terms.p.cross(v_W));
+    const Vec3 v_B = Rt * v_W;
+    const Eigen::Matrix<double, 2, 3> A_B = A * R_C_B_;  // d r / d(n_B - t x v_B)
+    J_pose->leftCols<3>() = A * terms.M_n * skew(v_W);
     J_pose->rightCols<3>() = A_B * (skew(n_B) - skew(t) * skew(v_B));
   }
   if (J_line != nullptr) {
-    // d n_B / d n_W = R^T;  d n_B / d v_W = -R^T [p]x;  d v_B / d v_W = R^T: the v_W part is K (poseTerms).
-    J_line->leftCols<3>() = A_B * Rt;
-    J_line->rightCols<3>() = A_B * terms.K;
+    // d l / d n_W = M_n, d l / d v_W = M_v (poseTerms).
+    J_line->leftCols<3>() = A * terms.M_n;
+    J_line->rightCols<3>() = A * terms.M_v;
   }
   return true;
 }
@@ -81,8 +83,8 @@ bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameter
   Eigen::Matrix<double, 2, 6> Jp, Jl;
   // The pose's terms from the cache when the pose block holds the same values (the line iterations), else anew.
   const double* pose = parameters[0];
-  if (!cache_.valid || (want_line && !cache_.has_K) || !std::equal(pose, pose + 7, cache_.block.begin())) {
-    poseTerms(poseFromBlock(pose), want_line || cache_.has_K, &cache_);
+  if (!cache_.valid || !std::equal(pose, pose + 7, cache_.block.begin())) {
+    poseTerms(poseFromBlock(pose), &cache_);
     std::copy(pose, pose + 7, cache_.block.begin());
     cache_.valid = true;
   }

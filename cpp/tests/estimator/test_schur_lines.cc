@@ -204,7 +204,9 @@ TEST(SchurLmLines, ReachesTheCeresMinimumWithPointsAndLines) {
   // landmark_damping = 0) but must not move the minimum.
   SchurLmOptions o;
   o.max_iterations = 1000;
-  o.function_tolerance = 1e-15;
+  // Converged: a step that lowers the cost by less than 1e-13 of it (tighter stops hang on the rounding of the cost,
+  // where no step is accepted any more; the minimum itself is checked below).
+  o.function_tolerance = 1e-13;
   const SchurLmSummary s = solveSchur(b, m, true, o);
   EXPECT_TRUE(s.converged);
   EXPECT_NEAR(s.initial_cost, cs.initial_cost, 1e-9 * cs.initial_cost);

@@ -39,19 +39,18 @@ class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public 
                 Eigen::Matrix<double, 2, 6>* J_line) const;
 
  private:
-  // The pose's share of the evaluation: R^T, p and, for the line Jacobian, K = d(n_B - t x v_B)/d v_W =
-  // -R^T [p]x - [t]x R^T. The window solver's line iterations evaluate each factor several times at one pose (only the
+  // The pose's share of the evaluation: R^T, p and the two 3 x 3 maps of the Plücker coordinates in W to the image
+  // line (M_n = R_C_B R^T, M_v = R_C_B K with K = -R^T [p]x - [t]x R^T). The window solver's line iterations evaluate each factor several times at one pose (only the
   // line moves), so evaluateTangentSpace keeps the last pose's terms. The cache makes concurrent evaluations of one
   // factor object unsafe; the window solves are single-threaded.
   struct PoseTerms {
     std::array<double, 7> block{};  // the pose block they were computed from
     Mat3 Rt;
     Vec3 p;
-    Mat3 K;
+    Mat3 M_n, M_v;  // the image line l = M_n n_W + M_v v_W
     bool valid = false;
-    bool has_K = false;
   };
-  void poseTerms(const Pose& T_W_B, bool with_K, PoseTerms* terms) const;
+  void poseTerms(const Pose& T_W_B, PoseTerms* terms) const;
   bool evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose,
                     Eigen::Matrix<double, 2, 6>* J_line) const;
   mutable PoseTerms cache_;
