@@ -63,8 +63,10 @@ void copyRates(std::size_t n_poses, std::span<const Vec3> v_W, std::span<const V
 
 const PoseTransformMemo::Entry* PoseTransformMemo::find(std::int64_t tag, const double* body, const double* extra,
                                                        int extra_size, bool derivatives) const {
-  for (const Entry& e : entries_) {
-    if (e.tag != tag || (derivatives && !e.derivatives)) continue;
+  for (std::size_t i = 0; i < tags_.size(); ++i) {
+    if (tags_[i] != tag) continue;
+    const Entry& e = entries_[i];
+    if (derivatives && !e.derivatives) continue;
     if (std::equal(body, body + kPoseAmbientSize, e.body.begin()) &&
         std::equal(extra, extra + extra_size, e.extra.begin()))
       return &e;
@@ -75,9 +77,11 @@ const PoseTransformMemo::Entry* PoseTransformMemo::find(std::int64_t tag, const 
 void PoseTransformMemo::store(const Entry& entry) {
   if (entries_.size() < kCapacity) {
     entries_.push_back(entry);
+    tags_.push_back(entry.tag);
     return;
   }
   entries_[next_] = entry;
+  tags_[next_] = entry.tag;
   next_ = (next_ + 1) % kCapacity;
 }
 

@@ -78,6 +78,7 @@ class PoseTransformMemo {
 
  private:
   std::vector<Entry> entries_;
+  std::vector<std::int64_t> tags_;  // entries_[i].tag, contiguous: a lookup scans these, not the large entries
   std::size_t next_ = 0;
 };
 
