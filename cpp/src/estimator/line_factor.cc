@@ -39,9 +39,7 @@ bool LineReprojectionFactor::evaluateWith(const PoseTerms& terms, const Vec6& L_
                                           Eigen::Matrix<double, 2, 6>* J_line) const {
   // Plücker W -> B -> C:  n_B = R^T (n_W - p x v_W), v_B = R^T v_W;  n_C = R_C_B (n_B - t_B_C x v_B), which is
   // M_n n_W + M_v v_W (poseTerms).
-  const Mat3& Rt = terms.Rt;
   const Vec3 n_W = L_W.head<3>(), v_W = L_W.tail<3>();
-  const Vec3& t = t_B_C_;
   const Vec3 l = terms.M_n * n_W + terms.M_v * v_W;  // image line, normalised coordinates
   const double ln2 = l.x() * l.x() + l.y() * l.y();
   if (!(ln2 > 1e-30)) return false;
@@ -61,11 +59,11 @@ bool LineReprojectionFactor::evaluateWith(const PoseTerms& terms, const Vec6& L_
   if (J_pose != nullptr) {
     // p <- p + dp:             d n_B / dp = R^T [v_W]x,  d v_B / dp = 0.
     // R <- R Exp(dtheta):      R^T -> (I - [dtheta]x) R^T, so d n_B / dtheta = [n_B]x, d v_B / dtheta = [v_B]x.
-    const Vec3 n_B = Rt * (n_W - terms.p.cross(v_W));
-    const Vec3 v_B = Rt * v_W;
+    const Vec3 n_B = terms.Rt * (n_W - terms.p.cross(v_W));
+    const Vec3 v_B = terms.Rt * v_W;
     const Eigen::Matrix<double, 2, 3> A_B = A * R_C_B_;  // d r / d(n_B - t x v_B)
     J_pose->leftCols<3>() = A * terms.M_n * skew(v_W);
-    J_pose->rightCols<3>() = A_B * (skew(n_B) - skew(t) * skew(v_B));
+    J_pose->rightCols<3>() = A_B * (skew(n_B) - skew(t_B_C_) * skew(v_B));
   }
   if (J_line != nullptr) {
     // d l / d n_W = M_n, d l / d v_W = M_v (poseTerms).

@@ -144,7 +144,7 @@ void Marginaliser::addParameterBlock(BlockKey key, const double* values, int amb
   b.ambient_size = ambient_size;
   b.tangent_size = manifold != nullptr ? manifold->TangentSize() : ambient_size;
   b.manifold = manifold;
-  b.pose = ambient_size == kPoseAmbientSize && dynamic_cast<const PoseManifold*>(manifold) != nullptr;
+  b.pose = isPoseBlock(ambient_size, manifold);
   b.order = static_cast<int>(blocks_.size());
   blocks_.emplace(key, std::move(b));
 }
@@ -231,7 +231,6 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<double*> jac_ptr;
   std::vector<Eigen::MatrixXd> J;
   std::vector<int> res_offset;
-  std::vector<unsigned char> tangent_given;
   RowMatrix plus;
   Eigen::VectorXd r;
   for (const Residual* res : used) {
@@ -243,13 +242,12 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     res_offset.assign(nb, -1);
     // A TangentJacobians factor gives its pose blocks' Jacobians in the tangent space: they are used as they come
     // (Ceres' ambient ones would be converted there and back).
-    tangent_given.assign(nb, 0);
+    const auto tangentGiven = [&](const Block& b) { return res->tangent != nullptr && b.pose; };
     for (std::size_t k = 0; k < nb; ++k) {
       const Block& b = blocks_.at(res->keys[k]);
       params[k] = b.values.data();
       if (!b.constant) {
-        tangent_given[k] = res->tangent != nullptr && b.pose;
-        jac_amb[k].resize(nr, tangent_given[k] ? b.tangent_size : b.ambient_size);
+        jac_amb[k].resize(nr, tangentGiven(b) ? b.tangent_size : b.ambient_size);
         jac_ptr[k] = jac_amb[k].data();
         res_offset[k] = offset.at(res->keys[k]);
       }
@@ -270,7 +268,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
         J[k].resize(0, 0);
         continue;
       }
-      if (b.manifold == nullptr || tangent_given[k]) {
+      if (b.manifold == nullptr || tangentGiven(b)) {
         J[k] = jac_amb[k];
       } else {
         plus.resize(b.ambient_size, b.tangent_size);

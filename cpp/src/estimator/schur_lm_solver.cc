@@ -86,7 +86,7 @@ void SchurLmSolver::addParameterBlock(double* data, int ambient_size, const cere
   b.tangent = manifold != nullptr ? manifold->TangentSize() : ambient_size;
   b.manifold = manifold;
   b.eliminate = eliminate;
-  b.pose = ambient_size == kPoseAmbientSize && dynamic_cast<const PoseManifold*>(manifold) != nullptr;
+  b.pose = isPoseBlock(ambient_size, manifold);
   b.offset = -1;
   index_.emplace(data, static_cast<int>(blocks_.size()));
   blocks_.push_back(b);

@@ -60,6 +60,12 @@ class LineManifold final : public ceres::Manifold {
   bool MinusJacobian(const double* x, double* jacobian) const override;
 };
 
+/// A pose block: 7 values on PoseManifold, the blocks whose Jacobians a TangentJacobians factor gives in the tangent
+/// space (factors/tangent_jacobians.h).
+inline bool isPoseBlock(int ambient_size, const ceres::Manifold* manifold) {
+  return ambient_size == kPoseAmbientSize && dynamic_cast<const PoseManifold*>(manifold) != nullptr;
+}
+
 /// Position of a pose block.
 inline Eigen::Map<const Vec3> posePosition(const double* pose) { return Eigen::Map<const Vec3>(pose); }
 
