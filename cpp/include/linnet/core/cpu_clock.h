@@ -3,9 +3,10 @@
 // threads share one core.
 #pragma once
 
-#include <cstdio>
+#include <cstdlib>
 #include <ctime>
 
+#include <fcntl.h>
 #include <unistd.h>
 
 namespace linnet {
@@ -25,13 +26,23 @@ inline double processCpuSeconds() {
 }
 
 /// The process's resident set size now, MB (10^6 bytes), from /proc/self/statm; 0 where that is not available.
+/// Read with one read(2) into a stack buffer: it runs for every frame, and stdio's fopen allocates a buffer each time.
 inline double residentSetMb() {
-  std::FILE* f = std::fopen("/proc/self/statm", "r");
-  if (f == nullptr) return 0.0;
-  long pages_total = 0, pages_resident = 0;
-  const bool ok = std::fscanf(f, "%ld %ld", &pages_total, &pages_resident) == 2;
-  std::fclose(f);
-  return ok ? static_cast<double>(pages_resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) * 1e-6 : 0.0;
+  const int fd = ::open("/proc/self/statm", O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return 0.0;
+  char text[128];
+  const ssize_t n = ::read(fd, text, sizeof(text) - 1);
+  ::close(fd);
+  if (n <= 0) return 0.0;
+  text[n] = '\0';
+  // "size resident shared ...", in pages.
+  char* end = nullptr;
+  std::strtol(text, &end, 10);
+  if (end == text) return 0.0;
+  const char* resident = end;
+  const long pages_resident = std::strtol(resident, &end, 10);
+  if (end == resident || pages_resident < 0) return 0.0;
+  return static_cast<double>(pages_resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) * 1e-6;
 }
 
 }  // namespace linnet
