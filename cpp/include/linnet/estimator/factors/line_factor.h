@@ -42,8 +42,8 @@ class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public 
   // The pose's share of the evaluation: R^T, p and the two 3 x 3 maps of the Plücker coordinates in W to the image
   // line (M_n = R_C_B R^T, M_v = R_C_B K with K = -R^T [p]x - [t]x R^T). The window solver's line iterations
   // evaluate each factor several times at one pose (only the line moves), so evaluateTangentSpace keeps the last
-  // pose's terms. The cache makes concurrent evaluations of one
-  // factor object unsafe; the window solves are single-threaded.
+  // pose's terms. The cache makes concurrent evaluations of one factor object unsafe; the window solves are
+  // single-threaded.
   struct PoseTerms {
     std::array<double, 7> block{};  // the pose block they were computed from
     Mat3 Rt;
