@@ -185,10 +185,10 @@ void EstimatorCore::solveWindowSchurLm(int max_iterations, bool all_right) {
     for (ResidualSpec& r : lines) visual.push_back(std::move(r));
   }
   if (!hold) correctCalibration(&visual);
-  std::set<BlockKey> landmarks;
   for (const ResidualSpec& r : visual) {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
-      if (r.keys[b] >= 0 || !landmarks.insert(r.keys[b]).second) continue;
+      // A landmark's block (negative key) is registered with its first residual.
+      if (r.keys[b] >= 0 || solver.hasBlock(r.blocks[b])) continue;
       if (r.line && hold_lines)
         solver.addConstantBlock(r.blocks[b], kLineAmbientSize);
       else if (r.line)

@@ -32,6 +32,12 @@ double effectiveThreshold(const Eigen::VectorXd& eigenvalues, const Marginaliser
 Eigen::MatrixXd symmetricPseudoInverse(const Eigen::MatrixXd& A, const MarginaliserOptions& options,
                                        int* deficiency) {
   const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
+  if (S.rows() == 1) {  // a scalar (an inverse depth) is its own eigenvalue: the decomposition below, without its cost
+    const double s = S(0, 0);
+    const bool kept = s > std::max(options.eigenvalue_threshold, options.relative_eigenvalue_threshold * s);
+    if (deficiency != nullptr) *deficiency = kept ? 0 : 1;
+    return Eigen::MatrixXd::Constant(1, 1, kept ? 1.0 / s : 0.0);
+  }
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(S);
   const double threshold = effectiveThreshold(es.eigenvalues(), options);
   Eigen::VectorXd inv = es.eigenvalues();
@@ -88,32 +94,32 @@ void applyLoss(const ceres::LossFunction& loss, Eigen::VectorXd* r, std::vector<
 std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockKey>& dropped,
                                                         const std::vector<const Residual*>& used,
                                                         int* num_decoupled) const {
-  // Structural coupling between dropped blocks: two are coupled when one residual touches both.
-  std::map<BlockKey, std::set<BlockKey>> coupled;
-  const std::set<BlockKey> drop_set(dropped.begin(), dropped.end());
-  std::vector<BlockKey> d;
-  for (const Residual* res : used) {
-    d.clear();
-    for (BlockKey k : res->keys)
-      if (drop_set.count(k) != 0) d.push_back(k);
-    for (BlockKey a : d)
-      for (BlockKey b : d)
-        if (a != b) coupled[a].insert(b);
-  }
-  // Greedy independent set, smallest blocks first (stable: ties keep the caller's order). A chosen block rules out
-  // the blocks coupled to it.
+  // The residuals of each dropped block (indexed as `dropped`): two dropped blocks are coupled when one residual
+  // touches both.
+  std::vector<std::vector<const Residual*>> touching(dropped.size());
+  for (const Residual* res : used)
+    for (const Block* b : res->blocks)
+      if (b->drop_index >= 0) touching[static_cast<std::size_t>(b->drop_index)].push_back(res);
+  // Greedy independent set, smallest blocks first (stable: ties keep the caller's order). A block coupled to one
+  // chosen before it is ruled out.
   std::vector<BlockKey> by_size = dropped;
   std::stable_sort(by_size.begin(), by_size.end(), [&](BlockKey a, BlockKey b) {
     return blocks_.at(a).tangent_size < blocks_.at(b).tangent_size;
   });
   std::vector<BlockKey> first;
-  std::set<BlockKey> chosen, ruled_out;
+  std::vector<unsigned char> chosen(dropped.size(), 0);
   for (BlockKey k : by_size) {
-    if (ruled_out.count(k) != 0) continue;
+    const int i = blocks_.at(k).drop_index;
+    const bool coupled_to_chosen =
+        std::any_of(touching[static_cast<std::size_t>(i)].begin(), touching[static_cast<std::size_t>(i)].end(),
+                    [&](const Residual* res) {
+                      return std::any_of(res->blocks.begin(), res->blocks.end(), [&](const Block* b) {
+                        return b->drop_index >= 0 && b->drop_index != i && chosen[static_cast<std::size_t>(b->drop_index)];
+                      });
+                    });
+    if (coupled_to_chosen) continue;
     first.push_back(k);
-    chosen.insert(k);
-    const auto it = coupled.find(k);
-    if (it != coupled.end()) ruled_out.insert(it->second.begin(), it->second.end());
+    chosen[static_cast<std::size_t>(i)] = 1;
   }
   // A single decoupled block gains nothing over the dense stage.
   if (first.size() < 2) {
@@ -122,7 +128,7 @@ std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockK
   }
   *num_decoupled = static_cast<int>(first.size());
   for (BlockKey k : dropped)
-    if (chosen.count(k) == 0) first.push_back(k);
+    if (!chosen[static_cast<std::size_t>(blocks_.at(k).drop_index)]) first.push_back(k);
   return first;
 }
 
@@ -163,6 +169,7 @@ void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres:
   if (sizes.size() != keys.size())
     throw UsageError("Marginaliser::addResidual: cost function has " + std::to_string(sizes.size()) +
                      " parameter blocks but " + std::to_string(keys.size()) + " keys were given");
+  std::vector<Block*> blocks(keys.size());
   for (std::size_t k = 0; k < keys.size(); ++k) {
     auto it = blocks_.find(keys[k]);
     if (it == blocks_.end()) throw UsageError("Marginaliser::addResidual: unknown " + keyName(keys[k]));
@@ -170,33 +177,38 @@ void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres:
       throw UsageError("Marginaliser::addResidual: " + keyName(keys[k]) + " has size " +
                        std::to_string(it->second.ambient_size) + " but the cost function's block " +
                        std::to_string(k) + " has size " + std::to_string(sizes[k]));
+    blocks[k] = &it->second;
   }
   const auto* tangent = dynamic_cast<const TangentJacobians*>(cost.get());
-  residuals_.push_back(Residual{std::move(cost), loss, std::move(keys), tangent});
+  residuals_.push_back(Residual{std::move(cost), loss, std::move(keys), std::move(blocks), tangent});
 }
 
 std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std::vector<BlockKey>& drop) {
   stats_ = MarginalisationStats{};
+  for (auto& [key, block] : blocks_) {
+    block.drop_index = -1;
+    block.offset = -1;
+  }
   // Dropped blocks (in the order given, duplicates ignored) come first in the linear system.
-  std::set<BlockKey> drop_set;
   std::vector<BlockKey> dropped;
   for (BlockKey key : drop) {
     auto it = blocks_.find(key);
     if (it == blocks_.end()) throw UsageError("Marginaliser::marginalise: unknown " + keyName(key));
     if (it->second.constant) continue;  // a constant block has no columns to eliminate
-    if (drop_set.insert(key).second) dropped.push_back(key);
+    if (it->second.drop_index >= 0) continue;
+    it->second.drop_index = static_cast<int>(dropped.size());
+    dropped.push_back(key);
   }
 
   // Residuals touching a dropped block, and the kept blocks they reach (registration order).
   std::vector<const Residual*> used;
   std::set<BlockKey> kept_set;
   for (const Residual& res : residuals_) {
-    const bool touches =
-        std::any_of(res.keys.begin(), res.keys.end(), [&](BlockKey k) { return drop_set.count(k) != 0; });
+    const bool touches = std::any_of(res.blocks.begin(), res.blocks.end(), [](const Block* b) { return b->drop_index >= 0; });
     if (!touches) continue;
     used.push_back(&res);
-    for (BlockKey k : res.keys)
-      if (drop_set.count(k) == 0 && !blocks_.at(k).constant) kept_set.insert(k);
+    for (std::size_t k = 0; k < res.keys.size(); ++k)
+      if (res.blocks[k]->drop_index < 0 && !res.blocks[k]->constant) kept_set.insert(res.keys[k]);
   }
   if (used.empty()) return nullptr;
   // Two-stage elimination: first a set of dropped blocks with no residual between any two of them (typically
@@ -209,16 +221,17 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
             [&](BlockKey a, BlockKey b) { return blocks_.at(a).order < blocks_.at(b).order; });
 
   // Column offsets in the joint system [dropped | kept].
-  std::map<BlockKey, int> offset;
   int m = 0;
   for (BlockKey k : dropped) {
-    offset[k] = m;
-    m += blocks_.at(k).tangent_size;
+    Block& b = blocks_.at(k);
+    b.offset = m;
+    m += b.tangent_size;
   }
   int n = 0;
   for (BlockKey k : kept) {
-    offset[k] = m + n;
-    n += blocks_.at(k).tangent_size;
+    Block& b = blocks_.at(k);
+    b.offset = m + n;
+    n += b.tangent_size;
   }
   const int total = m + n;
 
@@ -230,7 +243,6 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<RowMatrix> jac_amb;
   std::vector<double*> jac_ptr;
   std::vector<Eigen::MatrixXd> J;
-  std::vector<int> res_offset;
   RowMatrix plus;
   Eigen::VectorXd r;
   for (const Residual* res : used) {
@@ -239,17 +251,15 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     params.assign(nb, nullptr);
     jac_amb.resize(nb);
     jac_ptr.assign(nb, nullptr);
-    res_offset.assign(nb, -1);
     // A TangentJacobians factor gives its pose blocks' Jacobians in the tangent space: they are used as they come
     // (Ceres' ambient ones would be converted there and back).
     const auto tangentGiven = [&](const Block& b) { return res->tangent != nullptr && b.pose; };
     for (std::size_t k = 0; k < nb; ++k) {
-      const Block& b = blocks_.at(res->keys[k]);
+      const Block& b = *res->blocks[k];
       params[k] = b.values.data();
       if (!b.constant) {
         jac_amb[k].resize(nr, tangentGiven(b) ? b.tangent_size : b.ambient_size);
         jac_ptr[k] = jac_amb[k].data();
-        res_offset[k] = offset.at(res->keys[k]);
       }
     }
     r.resize(nr);
@@ -263,7 +273,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     J.resize(nb);
     bool finite = r.allFinite();
     for (std::size_t k = 0; k < nb; ++k) {
-      const Block& b = blocks_.at(res->keys[k]);
+      const Block& b = *res->blocks[k];
       if (b.constant) {
         J[k].resize(0, 0);
         continue;
@@ -285,14 +295,15 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     // Block-wise accumulation: only the touched blocks of H and g change.
     for (std::size_t a = 0; a < nb; ++a) {
       if (J[a].size() == 0) continue;
-      const int oa = res_offset[a];
+      const int oa = res->blocks[a]->offset;
       g.segment(oa, J[a].cols()).noalias() += J[a].transpose() * r;
       for (std::size_t b = 0; b < nb; ++b) {
         if (J[b].size() == 0) continue;
+        const int ob = res->blocks[b]->offset;
         if (nr == 2)
-          addTwoRowProduct(J[a], J[b], oa, res_offset[b], &H);
+          addTwoRowProduct(J[a], J[b], oa, ob, &H);
         else
-          H.block(oa, res_offset[b], J[a].cols(), J[b].cols()).noalias() += J[a].transpose() * J[b];
+          H.block(oa, ob, J[a].cols(), J[b].cols()).noalias() += J[a].transpose() * J[b];
       }
     }
   }
@@ -365,7 +376,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     prior->keys.push_back(k);
     prior->ambient_sizes.push_back(b.ambient_size);
     prior->tangent_sizes.push_back(b.tangent_size);
-    prior->tangent_offsets.push_back(offset.at(k) - m);
+    prior->tangent_offsets.push_back(b.offset - m);
     prior->x0.push_back(b.values);
     prior->manifolds.push_back(b.manifold);
   }

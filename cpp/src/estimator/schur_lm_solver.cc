@@ -154,8 +154,9 @@ void SchurLmSolver::prepare() {
   }
   // Each landmark's kept list gets room for every kept block its residuals name (an upper bound), then is filled in
   // residual order without repeats, as the slots are assigned.
-  std::size_t arena = 0;
+  std::size_t arena = 0, max_count = 0;
   for (Residual& r : residuals_) {
+    max_count = std::max(max_count, static_cast<std::size_t>(r.count));
     r.arena = arena;
     arena += static_cast<std::size_t>(r.rows);
     r.landmark = -1;
@@ -223,6 +224,9 @@ void SchurLmSolver::prepare() {
   lm_data_.setZero(static_cast<Eigen::Index>(data));
   inv_data_.setZero(static_cast<Eigen::Index>(inv));
   arena_.assign(arena, 0.0);
+  // The evaluations' pointer lists, sized once for the residual with the most blocks.
+  param_ptrs_.assign(max_count, nullptr);
+  jacobian_ptrs_.assign(max_count, nullptr);
   H_.setZero(reduced_size_, reduced_size_);
   g_.setZero(reduced_size_);
   g_e_.setZero(eliminated_size_);
@@ -257,8 +261,6 @@ double SchurLmSolver::evaluate(bool linearise) {
     const int rows = res.rows;
     double* scratch = arena_.data() + res.arena;
     VecMap r(scratch, rows);
-    param_ptrs_.resize(nb);
-    jacobian_ptrs_.resize(nb);
     double** J_ptrs = jacobian_ptrs_.data();
     double* p = scratch + rows;
     for (std::size_t k = 0; k < nb; ++k) {
@@ -523,8 +525,7 @@ double SchurLmSolver::landmarkCost(const Landmark& lm, Eigen::MatrixXd* H, Eigen
     const Residual& res = residuals_[static_cast<std::size_t>(lm_residuals_[static_cast<std::size_t>(lm.res_first + q)])];
     const std::size_t nb = static_cast<std::size_t>(res.count);
     lm_scratch_.resize(static_cast<std::size_t>(res.rows) * static_cast<std::size_t>(1 + b.ambient + b.tangent));
-    param_ptrs_.resize(nb);
-    jacobian_ptrs_.assign(nb, nullptr);
+    std::fill_n(jacobian_ptrs_.begin(), nb, nullptr);
     for (std::size_t k = 0; k < nb; ++k)
       param_ptrs_[k] = blocks_[static_cast<std::size_t>(res_blocks_[static_cast<std::size_t>(res.first) + k])].data;
     double* r_data = lm_scratch_.data();

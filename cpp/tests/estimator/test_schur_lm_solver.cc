@@ -214,7 +214,12 @@ TEST(SchurLmSolver, MalformedProblemsThrow) {
   const PoseManifold manifold;
   Problem p = makeProblem(3, 0);
   SchurLmSolver solver;
+  EXPECT_FALSE(solver.hasBlock(p.poses[0].data()));
   solver.addParameterBlock(p.poses[0].data(), 7, &manifold, false);
+  solver.addConstantBlock(p.poses[2].data(), 7);
+  EXPECT_TRUE(solver.hasBlock(p.poses[0].data()));
+  EXPECT_TRUE(solver.hasBlock(p.poses[2].data()));
+  EXPECT_FALSE(solver.hasBlock(p.poses[1].data()));
   EXPECT_THROW(solver.addParameterBlock(p.poses[0].data(), 7, &manifold, false), UsageError);  // twice
   EXPECT_THROW(solver.addParameterBlock(p.poses[1].data(), 6, &manifold, false), UsageError);  // size vs manifold
   // A residual over an unregistered block.

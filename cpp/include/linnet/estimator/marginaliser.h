@@ -101,11 +101,16 @@ class Marginaliser {
     int order = 0;  // registration order
     bool constant = false;
     bool pose = false;  // 7 values on PoseManifold: a TangentJacobians factor gives its Jacobian in the tangent space
+    // Set by marginalise() for its own use: the block's index in the dropped list (-1: kept) and its first column in
+    // the joint system (-1: not in it).
+    int drop_index = -1;
+    int offset = -1;
   };
   struct Residual {
     std::shared_ptr<ceres::CostFunction> cost;
     ceres::LossFunction* loss = nullptr;
     std::vector<BlockKey> keys;
+    std::vector<Block*> blocks;                 // the keys' blocks (a std::map's nodes do not move)
     const TangentJacobians* tangent = nullptr;  // cost, when it gives tangent-space Jacobians
   };
 

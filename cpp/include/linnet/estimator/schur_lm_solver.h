@@ -70,6 +70,8 @@ class SchurLmSolver {
   /// Registers a block that the residuals read but the solve leaves as it is (Ceres' SetParameterBlockConstant): no
   /// Jacobian is asked for it and it has no rows in the system.
   void addConstantBlock(double* data, int ambient_size);
+  /// True if the block at `data` is registered (as a parameter or a constant block).
+  bool hasBlock(const double* data) const { return index_.count(data) != 0; }
   /// Adds a residual over registered blocks (in the cost function's order). `loss` may be nullptr.
   void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss, std::span<double* const> blocks);
   void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss,
