@@ -1,6 +1,5 @@
 // Problem building, solving and window sliding with marginalisation (DESIGN B1; thesis ch. 4).
 #include <algorithm>
-#include <set>
 
 #include <ceres/problem.h>
 #include <ceres/solver.h>
@@ -245,9 +244,8 @@ void EstimatorCore::marginaliseOldest() {
   const WindowFrame& old = window_[0];
   const FrameId old_id = old.id;
   Marginaliser m;
-  std::set<BlockKey> registered;
   auto reg = [&](BlockKey key, double* values, int size, const ceres::Manifold* manifold) {
-    if (registered.insert(key).second) m.addParameterBlock(key, values, size, manifold);
+    if (!m.hasParameterBlock(key)) m.addParameterBlock(key, values, size, manifold);
   };
   auto regFrameKey = [&](BlockKey key) { reg(key, blockOf(key), ambientSizeOf(key), manifoldOf(key)); };
   const std::vector<BlockKey> drop_frame = {frameBlockKey(old_id, BlockKind::kPose),
@@ -279,7 +277,7 @@ void EstimatorCore::marginaliseOldest() {
     for (std::size_t b = 0; b < r.keys.size(); ++b) {
       if (r.keys[b] >= 0) {
         regFrameKey(r.keys[b]);
-      } else if (registered.insert(r.keys[b]).second) {
+      } else if (!m.hasParameterBlock(r.keys[b])) {
         if (r.line)
           m.addParameterBlock(r.keys[b], r.blocks[b], kLineAmbientSize, &line_manifold_);
         else

@@ -339,7 +339,9 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   // Stage 2: H* = H_rr - H_rm H_mm^+ H_mr, g* = g_r - H_rm H_mm^+ g_m over the remaining dropped blocks.
   const int m2 = m - m1;
   int def2 = 0;
-  const Eigen::MatrixXd Hmm_inv = symmetricPseudoInverse(H.topLeftCorner(m2, m2), options_, &def2);
+  // (Empty when the first stage took every dropped block: Eigen's eigen-solver does not take a 0 x 0 matrix.)
+  const Eigen::MatrixXd Hmm_inv =
+      m2 > 0 ? symmetricPseudoInverse(H.topLeftCorner(m2, m2), options_, &def2) : Eigen::MatrixXd(0, 0);
   deficiency += def2;
   const Eigen::MatrixXd Hrm_Hmm_inv = H.bottomLeftCorner(n, m2) * Hmm_inv;
   Eigen::MatrixXd H_star = H.bottomRightCorner(n, n) - Hrm_Hmm_inv * H.topRightCorner(m2, n);

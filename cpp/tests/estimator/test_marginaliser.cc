@@ -384,7 +384,9 @@ TEST(Marginaliser, ConstantBlocksAndDisconnectedDrops) {
 TEST(Marginaliser, ApiMisuseThrowsUsageError) {
   Marginaliser m;
   const double v[3] = {0.0, 0.0, 0.0};
+  EXPECT_FALSE(m.hasParameterBlock(1));
   m.addParameterBlock(1, v, 3, nullptr);
+  EXPECT_TRUE(m.hasParameterBlock(1));
   EXPECT_THROW(m.addParameterBlock(1, v, 3, nullptr), UsageError);
   ceres::EuclideanManifold<2> e2;
   EXPECT_THROW(m.addParameterBlock(2, v, 3, &e2), UsageError);
@@ -400,6 +402,31 @@ TEST(Marginaliser, ApiMisuseThrowsUsageError) {
   } catch (const UsageError& e) {
     EXPECT_NE(std::string(e.what()).find("key 42"), std::string::npos) << e.what();
   }
+}
+
+TEST(Marginaliser, UnobservedScalarIsDroppedAsRankDeficient) {
+  // Two scalar landmarks, decoupled from each other (the block-diagonal first stage): x1 seen with the kept k, x2
+  // with no information of its own. x2's zero block counts as a rank deficiency and leaves k's information alone.
+  Marginaliser m;
+  const double x1 = 0.5, x2 = -1.0, k = 2.0;
+  m.addParameterBlock(1, &x1, 1, nullptr);
+  m.addParameterBlock(2, &x2, 1, nullptr);
+  m.addParameterBlock(3, &k, 1, nullptr);
+  const Eigen::MatrixXd one = Eigen::MatrixXd::Ones(1, 1), zero = Eigen::MatrixXd::Zero(1, 1);
+  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{one, one}, Eigen::VectorXd::Zero(1)),
+                nullptr, {1, 3});
+  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{zero, one}, Eigen::VectorXd::Zero(1)),
+                nullptr, {2, 3});
+  m.addResidual(std::make_shared<LinearResidual>(std::vector<Eigen::MatrixXd>{one}, Eigen::VectorXd::Zero(1)), nullptr,
+                {3});
+  const auto prior = m.marginalise({1, 2});
+  ASSERT_NE(prior, nullptr);
+  EXPECT_EQ(m.lastStats().decoupled_blocks, 2);
+  EXPECT_EQ(m.lastStats().dropped_rank_deficiency, 1);
+  // The prior holds what the dropped blocks' residuals say of k: 1 (x2's residual) + 1 - 1 * 1 / 1 (x1's, with x1
+  // eliminated) = 1. k's own residual touches no dropped block and stays out of it.
+  ASSERT_EQ(prior->J.rows(), 1);
+  EXPECT_NEAR((prior->J.transpose() * prior->J)(0, 0), 1.0, 1e-12);
 }
 
 TEST(Marginaliser, SameInputGivesBitIdenticalPrior) {

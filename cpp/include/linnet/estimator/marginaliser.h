@@ -73,6 +73,9 @@ class Marginaliser {
   void addParameterBlock(BlockKey key, const double* values, int ambient_size,
                          const ceres::Manifold* manifold);
 
+  /// True if a block with this key is registered.
+  bool hasParameterBlock(BlockKey key) const { return blocks_.count(key) != 0; }
+
   /// Declares a block as held constant: its columns are not estimated, it never enters a prior.
   void setParameterBlockConstant(BlockKey key);
 
