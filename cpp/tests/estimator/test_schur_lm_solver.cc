@@ -2,6 +2,7 @@
 // (eliminated), point reprojection residuals with a Huber loss and a few gross outliers, pose priors for the gauge.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <memory>
 #include <random>
 #include <vector>
@@ -208,6 +209,33 @@ TEST(SchurLmSolver, TimeBoundStopsBeforeTheFirstIteration) {
   const SchurLmSummary s = solver.solve(o);
   EXPECT_EQ(s.iterations, 0);
   EXPECT_EQ(s.final_cost, s.initial_cost);
+}
+
+TEST(SchurLmSolver, DegenerateProblemsSolveWithoutCrashing) {
+  SchurLmOptions o;
+  o.max_iterations = 5;
+  {  // nothing at all
+    SchurLmSolver solver;
+    const SchurLmSummary s = solver.solve(o);
+    EXPECT_EQ(s.final_cost, 0.0);
+  }
+  Problem p = makeProblem(5, 0);
+  const PoseManifold manifold;
+  {  // only eliminated blocks: every pose held
+    SchurLmSolver solver;
+    for (auto& pose : p.poses) solver.addConstantBlock(pose.data(), 7);
+    for (double& d : p.inv_depth) solver.addParameterBlock(&d, 1, nullptr, true);
+    for (const auto& r : p.res) solver.addResidual(r.cost, nullptr, blocksOf(p, r));
+    const SchurLmSummary s = solver.solve(o);
+    EXPECT_TRUE(std::isfinite(s.final_cost));
+    EXPECT_LE(s.final_cost, s.initial_cost);
+  }
+  {  // a kept block with no residual
+    SchurLmSolver solver;
+    solver.addParameterBlock(p.poses[0].data(), 7, &manifold, false);
+    const SchurLmSummary s = solver.solve(o);
+    EXPECT_EQ(s.final_cost, 0.0);
+  }
 }
 
 TEST(SchurLmSolver, MalformedProblemsThrow) {
