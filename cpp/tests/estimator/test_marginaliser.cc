@@ -143,6 +143,8 @@ TEST(Marginaliser, LinearGaussianMatchesBatchSolutionAndCovariance) {
             (std::vector<BlockKey>{12, 13}));  // connected to a dropped block, registration order
   EXPECT_EQ(prior->J.cols(), 3);
   EXPECT_EQ(prior->J.rows(), 3);  // full rank
+  // ... so the square root is the Cholesky factor's (upper triangular), the path the window's priors take.
+  EXPECT_EQ(prior->J.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
 
   // Batch over everything.
   Eigen::VectorXd x_full;

@@ -4,18 +4,18 @@
 //
 // Usage (one Marginaliser per marginalisation step):
 //   Marginaliser m;
-//   m.addParameterBlock(key, values, ambient_size, manifold_or_nullptr);   // for every block a residual
-//   touches m.addResidual(cost, loss, {key_a, key_b, ...});                          // every residual
-//   touching a dropped block auto prior = m.marginalise({keys to drop});                              // ->
-//   PriorFactor(prior) in the next window
+//   m.addParameterBlock(key, values, ambient_size, manifold_or_nullptr);  // every block a residual touches
+//   m.addResidual(cost, loss, {key_a, key_b, ...});                       // every residual touching a dropped block
+//   auto prior = m.marginalise({keys to drop});                           // -> PriorFactor(prior) in the next window
 // A previous prior is re-marginalised by adding std::make_shared<PriorFactor>(old_prior) with keys
 // old_prior->keys.
 //
 // Elimination runs in two stages that give the same Schur complement: first the dropped blocks that share no
 // residual with one another (e.g. the inverse depths hosted by the dropped frame: H_PP is block-diagonal,
 // inverted block by block), then the remaining dropped blocks through a dense eigen-decomposition
-// (pseudo-inverse with the threshold). The result H* = V S V^T becomes J = sqrt(S) V^T, r = sqrt(S)^-1 V^T g*
-// over the eigenvalues above the threshold.
+// (pseudo-inverse with the threshold). The result H* becomes the square root J with J^T J = H*: its Cholesky
+// factor (J = L^T, r = L^-1 g*) when H* is certainly of full rank above the threshold, else J = sqrt(S) V^T,
+// r = sqrt(S)^-1 V^T g* from H* = V S V^T over the eigenvalues above the threshold.
 //
 // Robust losses: each residual is corrected as Ceres' own trust-region solver does (Triggs et al., "Bundle
 // adjustment - a modern synthesis", 2000, sec. 4.3): r' = sqrt(rho')/(1 - a) r, J' = sqrt(rho') (I - a r
