@@ -61,28 +61,37 @@ void copyRates(std::size_t n_poses, std::span<const Vec3> v_W, std::span<const V
 }
 }  // namespace
 
+bool PoseTransformMemo::matches(std::size_t i, std::int64_t tag, const double* body, const double* extra,
+                                int extra_size, bool derivatives) const {
+  if (tags_[i] != tag) return false;
+  const Entry& e = entries_[i];
+  if (derivatives && !e.derivatives) return false;
+  return std::equal(body, body + kPoseAmbientSize, e.body.begin()) &&
+         std::equal(extra, extra + extra_size, e.extra.begin());
+}
+
 const PoseTransformMemo::Entry* PoseTransformMemo::find(std::int64_t tag, const double* body, const double* extra,
                                                        int extra_size, bool derivatives) const {
-  for (std::size_t i = 0; i < tags_.size(); ++i) {
-    if (tags_[i] != tag) continue;
-    const Entry& e = entries_[i];
-    if (derivatives && !e.derivatives) continue;
-    if (std::equal(body, body + kPoseAmbientSize, e.body.begin()) &&
-        std::equal(extra, extra + extra_size, e.extra.begin()))
-      return &e;
-  }
+  const int hint = last_of_tag_[static_cast<std::size_t>(tag) % kHints];
+  if (hint >= 0 && matches(static_cast<std::size_t>(hint), tag, body, extra, extra_size, derivatives))
+    return &entries_[static_cast<std::size_t>(hint)];
+  for (std::size_t i = 0; i < tags_.size(); ++i)
+    if (matches(i, tag, body, extra, extra_size, derivatives)) return &entries_[i];
   return nullptr;
 }
 
 void PoseTransformMemo::store(const Entry& entry) {
+  std::size_t at = next_;
   if (entries_.size() < kCapacity) {
+    at = entries_.size();
     entries_.push_back(entry);
     tags_.push_back(entry.tag);
-    return;
+  } else {
+    entries_[next_] = entry;
+    tags_[next_] = entry.tag;
+    next_ = (next_ + 1) % kCapacity;
   }
-  entries_[next_] = entry;
-  tags_[next_] = entry.tag;
-  next_ = (next_ + 1) % kCapacity;
+  last_of_tag_[static_cast<std::size_t>(entry.tag) % kHints] = static_cast<int>(at);
 }
 
 PoseWrappedFactor::PoseWrappedFactor(std::shared_ptr<ceres::CostFunction> inner, std::span<const int> pose_blocks,

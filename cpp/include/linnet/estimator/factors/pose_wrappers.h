@@ -77,9 +77,21 @@ class PoseTransformMemo {
   static constexpr std::size_t kCapacity = 64;
 
  private:
+  bool matches(std::size_t i, std::int64_t tag, const double* body, const double* extra, int extra_size,
+               bool derivatives) const;
+
   std::vector<Entry> entries_;
   std::vector<std::int64_t> tags_;  // entries_[i].tag, contiguous: a lookup scans these, not the large entries
   std::size_t next_ = 0;
+  // The entry stored last for a tag (by the tag's low bits; -1: none), tried before the scan: the residuals of one
+  // evaluation pass ask for the same few transforms in turn. Any matching entry holds the same transform, so which
+  // one answers does not change a result.
+  static constexpr std::size_t kHints = 16;
+  std::array<int, kHints> last_of_tag_ = [] {
+    std::array<int, kHints> a{};
+    a.fill(-1);
+    return a;
+  }();
 };
 
 class PoseWrappedFactor : public ceres::CostFunction, public TangentJacobians {
