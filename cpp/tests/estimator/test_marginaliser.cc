@@ -117,8 +117,8 @@ void denseSolve(const std::vector<Term>& terms, const std::vector<BlockKey>& ord
 /// Registers the blocks a set of terms touches, adds the terms, marginalises `drop`.
 std::shared_ptr<const MarginalizationPrior> marginaliseTerms(
     const std::vector<Term>& terms, const std::map<BlockKey, std::vector<double>>& x_lin,
-    const std::vector<BlockKey>& drop) {
-  Marginaliser m;
+    const std::vector<BlockKey>& drop, const MarginaliserOptions& options = {}) {
+  Marginaliser m(options);
   for (const auto& [key, values] : x_lin)
     m.addParameterBlock(key, values.data(), static_cast<int>(values.size()), nullptr);
   for (const Term& t : terms) m.addResidual(t.cost, nullptr, t.keys);
@@ -162,6 +162,35 @@ TEST(Marginaliser, LinearGaussianMatchesBatchSolutionAndCovariance) {
   EXPECT_LT((x_red - x_full.tail(5)).cwiseAbs().maxCoeff(), 1e-9) << x_red.transpose() << "\n"
                                                                   << x_full.tail(5).transpose();
   EXPECT_LT((cov_red - cov_full.bottomRightCorner(5, 5)).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+TEST(Marginaliser, CholeskyAndEigenSquareRootsGiveTheSamePrior) {
+  // A full-rank prior takes the Cholesky factor; an eigenvalue threshold between the certain bound 1 / trace(H*^-1)
+  // and the smallest eigenvalue sends the same problem down the eigen-decomposition path, which still keeps every
+  // eigenvalue. Both square roots must give the same H* = J^T J and g* = J^T r.
+  std::mt19937 rng(5);
+  const LinearProblem lp(rng, {{10, 2}, {11, 3}, {12, 3}, {13, 2}, {14, 2}},
+                         {{10}, {10, 11}, {11, 12}, {10, 13}, {12, 13, 14}, {10, 14}, {11, 14}});
+  const std::vector<BlockKey> drop = {10, 11};
+  const auto chol = marginaliseTerms(lp.terms, lp.x_lin, drop);
+  ASSERT_TRUE(chol);
+  ASSERT_EQ(chol->J.rows(), chol->J.cols());
+  EXPECT_EQ(chol->J.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+  const Eigen::MatrixXd H = chol->J.transpose() * chol->J;
+  const Eigen::VectorXd g = chol->J.transpose() * chol->r;
+  const double lambda_min = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(H).eigenvalues()(0);
+  const double certain = 1.0 / H.inverse().trace();
+  ASSERT_LT(certain, lambda_min);
+  MarginaliserOptions o;
+  o.eigenvalue_threshold = 0.5 * (certain + lambda_min);
+  const auto eig = marginaliseTerms(lp.terms, lp.x_lin, drop, o);
+  ASSERT_TRUE(eig);
+  ASSERT_EQ(eig->J.rows(), chol->J.rows());  // every eigenvalue kept
+  EXPECT_GT(eig->J.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+  const double scale = H.cwiseAbs().maxCoeff();
+  EXPECT_LT((eig->J.transpose() * eig->J - H).cwiseAbs().maxCoeff(), 1e-10 * scale);
+  EXPECT_LT((eig->J.transpose() * eig->r - g).cwiseAbs().maxCoeff(), 1e-10 * std::max(1.0, g.cwiseAbs().maxCoeff()));
+  EXPECT_NEAR(eig->costAtX0(), chol->costAtX0(), 1e-10 * std::max(1.0, chol->costAtX0()));
 }
 
 TEST(Marginaliser, LandmarkHeavyDropMatchesBatch) {
