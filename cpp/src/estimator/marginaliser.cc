@@ -114,7 +114,8 @@ std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockK
         std::any_of(touching[static_cast<std::size_t>(i)].begin(), touching[static_cast<std::size_t>(i)].end(),
                     [&](const Residual* res) {
                       return std::any_of(res->blocks.begin(), res->blocks.end(), [&](const Block* b) {
-                        return b->drop_index >= 0 && b->drop_index != i && chosen[static_cast<std::size_t>(b->drop_index)];
+                        const int j = b->drop_index;
+                        return j >= 0 && j != i && chosen[static_cast<std::size_t>(j)];
                       });
                     });
     if (coupled_to_chosen) continue;
@@ -204,7 +205,8 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<const Residual*> used;
   std::set<BlockKey> kept_set;
   for (const Residual& res : residuals_) {
-    const bool touches = std::any_of(res.blocks.begin(), res.blocks.end(), [](const Block* b) { return b->drop_index >= 0; });
+    const bool touches =
+        std::any_of(res.blocks.begin(), res.blocks.end(), [](const Block* b) { return b->drop_index >= 0; });
     if (!touches) continue;
     used.push_back(&res);
     for (std::size_t k = 0; k < res.keys.size(); ++k)
