@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <set>
 #include <string>
 #include <utility>
@@ -94,32 +95,44 @@ void applyLoss(const ceres::LossFunction& loss, Eigen::VectorXd* r, std::vector<
 std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockKey>& dropped,
                                                         const std::vector<const Residual*>& used,
                                                         int* num_decoupled) const {
-  // The residuals of each dropped block (indexed as `dropped`): two dropped blocks are coupled when one residual
-  // touches both.
-  std::vector<std::vector<const Residual*>> touching(dropped.size());
+  // The residuals of each dropped block (indexed as `dropped`), as one flat list (counts, offsets, entries): two
+  // dropped blocks are coupled when one residual touches both.
+  const std::size_t nd = dropped.size();
+  std::vector<int> first_of(nd + 1, 0);
   for (const Residual* res : used)
     for (const Block* b : res->blocks)
-      if (b->drop_index >= 0) touching[static_cast<std::size_t>(b->drop_index)].push_back(res);
+      if (b->drop_index >= 0) ++first_of[static_cast<std::size_t>(b->drop_index) + 1];
+  for (std::size_t i = 1; i <= nd; ++i) first_of[i] += first_of[i - 1];
+  std::vector<const Residual*> touching(static_cast<std::size_t>(first_of.back()));
+  std::vector<int> filled(first_of.begin(), first_of.end() - 1);
+  for (const Residual* res : used)
+    for (const Block* b : res->blocks)
+      if (b->drop_index >= 0) {
+        int& at = filled[static_cast<std::size_t>(b->drop_index)];
+        touching[static_cast<std::size_t>(at++)] = res;
+      }
   // Greedy independent set, smallest blocks first (stable: ties keep the caller's order). A block coupled to one
   // chosen before it is ruled out.
-  std::vector<BlockKey> by_size = dropped;
-  std::stable_sort(by_size.begin(), by_size.end(), [&](BlockKey a, BlockKey b) {
-    return blocks_.at(a).tangent_size < blocks_.at(b).tangent_size;
+  std::vector<int> sizes(nd);
+  for (std::size_t i = 0; i < nd; ++i) sizes[i] = blocks_.at(dropped[i]).tangent_size;
+  std::vector<int> by_size(nd);
+  std::iota(by_size.begin(), by_size.end(), 0);
+  std::stable_sort(by_size.begin(), by_size.end(), [&](int a, int b) {
+    return sizes[static_cast<std::size_t>(a)] < sizes[static_cast<std::size_t>(b)];
   });
   std::vector<BlockKey> first;
-  std::vector<unsigned char> chosen(dropped.size(), 0);
-  for (BlockKey k : by_size) {
-    const int i = blocks_.at(k).drop_index;
-    const bool coupled_to_chosen =
-        std::any_of(touching[static_cast<std::size_t>(i)].begin(), touching[static_cast<std::size_t>(i)].end(),
-                    [&](const Residual* res) {
-                      return std::any_of(res->blocks.begin(), res->blocks.end(), [&](const Block* b) {
-                        const int j = b->drop_index;
-                        return j >= 0 && j != i && chosen[static_cast<std::size_t>(j)];
-                      });
-                    });
-    if (coupled_to_chosen) continue;
-    first.push_back(k);
+  std::vector<unsigned char> chosen(nd, 0);
+  for (const int i : by_size) {
+    const auto coupled = [&](const Residual* res) {
+      return std::any_of(res->blocks.begin(), res->blocks.end(), [&](const Block* b) {
+        const int j = b->drop_index;
+        return j >= 0 && j != i && chosen[static_cast<std::size_t>(j)];
+      });
+    };
+    if (std::any_of(touching.begin() + first_of[static_cast<std::size_t>(i)],
+                    touching.begin() + first_of[static_cast<std::size_t>(i) + 1], coupled))
+      continue;
+    first.push_back(dropped[static_cast<std::size_t>(i)]);
     chosen[static_cast<std::size_t>(i)] = 1;
   }
   // A single decoupled block gains nothing over the dense stage.
@@ -128,8 +141,8 @@ std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockK
     return dropped;
   }
   *num_decoupled = static_cast<int>(first.size());
-  for (BlockKey k : dropped)
-    if (!chosen[static_cast<std::size_t>(blocks_.at(k).drop_index)]) first.push_back(k);
+  for (std::size_t i = 0; i < nd; ++i)
+    if (!chosen[i]) first.push_back(dropped[i]);
   return first;
 }
 
