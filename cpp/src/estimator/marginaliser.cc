@@ -67,6 +67,20 @@ void addTwoRowProduct(const Eigen::MatrixXd& Ja, const Eigen::MatrixXd& Jb, int 
   }
 }
 
+/// H = (H + H^T) / 2 where H may be unsymmetric: the entries between the column ranges `dense` (offset, size); the
+/// others are symmetric already. Each pair is averaged from its two old values.
+void symmetrise(const std::vector<std::pair<int, int>>& dense, Eigen::MatrixXd* H) {
+  for (const auto& [oa, na] : dense)
+    for (const auto& [ob, nb] : dense)
+      for (int j = ob; j < ob + nb; ++j)
+        for (int i = oa; i < oa + na; ++i) {
+          if (i >= j) continue;  // each pair once, from its upper entry; the diagonal stays
+          const double v = 0.5 * ((*H)(i, j) + (*H)(j, i));
+          (*H)(i, j) = v;
+          (*H)(j, i) = v;
+        }
+}
+
 /// Applies the loss function's correction to one residual block (residual r, tangent Jacobians per parameter
 /// block, empty for constant blocks), in place. Same algebra as Ceres' trust-region solver (Triggs et al.
 /// 2000).
@@ -260,9 +274,17 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<Eigen::MatrixXd> J;
   RowMatrix plus;
   Eigen::VectorXd r;
+  // The column ranges (offset, size) of the blocks that residuals of other than two rows reach (IMU, prior): only
+  // between those can H come out unsymmetric (addTwoRowProduct's mirror entries are the same products).
+  std::vector<std::pair<int, int>> dense;
   for (const Residual* res : used) {
     const int nr = res->cost->num_residuals();
     const std::size_t nb = res->keys.size();
+    if (nr != 2)
+      for (const Block* b : res->blocks)
+        if (!b->constant && std::find(dense.begin(), dense.end(), std::make_pair(b->offset, b->tangent_size)) ==
+                                dense.end())
+          dense.emplace_back(b->offset, b->tangent_size);
     params.assign(nb, nullptr);
     jac_amb.resize(nb);
     jac_ptr.assign(nb, nullptr);
@@ -322,7 +344,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
       }
     }
   }
-  H = 0.5 * (H + H.transpose());
+  symmetrise(dense, &H);
 
   // Stage 1: the decoupled blocks (H_PP block-diagonal).
   int deficiency = 0, m1 = 0;
@@ -361,7 +383,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   const Eigen::MatrixXd Hrm_Hmm_inv = H.bottomLeftCorner(n, m2) * Hmm_inv;
   Eigen::MatrixXd H_star = H.bottomRightCorner(n, n) - Hrm_Hmm_inv * H.topRightCorner(m2, n);
   const Eigen::VectorXd g_star = g.tail(n) - Hrm_Hmm_inv * g.head(m2);
-  H_star = 0.5 * (H_star + H_star.transpose());
+  H_star = (0.5 * (H_star + H_star.transpose())).eval();  // evaluated first: the sum reads H_star's transpose
 
   stats_.residuals_used = static_cast<int>(used.size());
   stats_.dropped_size = m;
