@@ -66,6 +66,11 @@ struct MarginalisationStats {
 class Marginaliser {
  public:
   explicit Marginaliser(MarginaliserOptions options = {});
+  // Residuals point at their blocks' map nodes: a copy's would point into the original. Moving keeps the nodes.
+  Marginaliser(const Marginaliser&) = delete;
+  Marginaliser& operator=(const Marginaliser&) = delete;
+  Marginaliser(Marginaliser&&) = default;
+  Marginaliser& operator=(Marginaliser&&) = default;
 
   /// Registers a parameter block. `values` (ambient_size doubles) is COPIED now: the linearisation point is
   /// the value at registration. `manifold` (nullptr = Euclidean) is not owned and must outlive the returned
