@@ -22,10 +22,15 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 
 std::string keyName(BlockKey key) { return "parameter block key " + std::to_string(key); }
 
-/// Eigenvalues (ascending) at or below this count as zero: the absolute and the relative threshold.
-double effectiveThreshold(const Eigen::VectorXd& eigenvalues, const MarginaliserOptions& o) {
-  const double largest = eigenvalues.size() > 0 ? eigenvalues(eigenvalues.size() - 1) : 0.0;
+/// Eigenvalues at or below this count as zero, for a matrix whose largest eigenvalue is `largest` (or a bound on
+/// it): the absolute and the relative threshold.
+double thresholdFor(double largest, const MarginaliserOptions& o) {
   return std::max(o.eigenvalue_threshold, o.relative_eigenvalue_threshold * largest);
+}
+
+/// The same from the eigenvalues (ascending).
+double effectiveThreshold(const Eigen::VectorXd& eigenvalues, const MarginaliserOptions& o) {
+  return thresholdFor(eigenvalues.size() > 0 ? eigenvalues(eigenvalues.size() - 1) : 0.0, o);
 }
 
 /// Symmetric pseudo-inverse through the eigen-decomposition; eigenvalues at or below the effective threshold
@@ -35,7 +40,7 @@ Eigen::MatrixXd symmetricPseudoInverse(const Eigen::MatrixXd& A, const Marginali
   const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
   if (S.rows() == 1) {  // a scalar (an inverse depth) is its own eigenvalue: the decomposition below, without its cost
     const double s = S(0, 0);
-    const bool kept = s > std::max(options.eigenvalue_threshold, options.relative_eigenvalue_threshold * s);
+    const bool kept = s > thresholdFor(s, options);
     if (deficiency != nullptr) *deficiency = kept ? 0 : 1;
     return Eigen::MatrixXd::Constant(1, 1, kept ? 1.0 / s : 0.0);
   }
@@ -401,8 +406,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     const Eigen::MatrixXd L_inv =
         llt.matrixL().solve(Eigen::MatrixXd::Identity(n, n));  // lower triangular, as L
     const double lambda_min_bound = 1.0 / L_inv.squaredNorm();
-    const double bound = std::max(options_.eigenvalue_threshold,
-                                  options_.relative_eigenvalue_threshold * H_star.trace());
+    const double bound = thresholdFor(H_star.trace(), options_);
     if (std::isfinite(lambda_min_bound) && lambda_min_bound > bound) {
       stats_.prior_rank = n;
       prior->J = llt.matrixU();

@@ -125,6 +125,11 @@ std::shared_ptr<const MarginalizationPrior> marginaliseTerms(
   return m.marginalise(drop);
 }
 
+// Largest magnitude below the diagonal: 0 for the Cholesky path's upper-triangular square root.
+double belowDiagonal(const Eigen::MatrixXd& J) {
+  return J.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff();
+}
+
 bool touchesAny(const Term& t, const std::vector<BlockKey>& keys) {
   for (BlockKey k : t.keys)
     for (BlockKey d : keys)
@@ -144,7 +149,7 @@ TEST(Marginaliser, LinearGaussianMatchesBatchSolutionAndCovariance) {
   EXPECT_EQ(prior->J.cols(), 3);
   EXPECT_EQ(prior->J.rows(), 3);  // full rank
   // ... so the square root is the Cholesky factor's (upper triangular), the path the window's priors take.
-  EXPECT_EQ(prior->J.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(belowDiagonal(prior->J), 0.0);
 
   // Batch over everything.
   Eigen::VectorXd x_full;
@@ -175,7 +180,7 @@ TEST(Marginaliser, CholeskyAndEigenSquareRootsGiveTheSamePrior) {
   const auto chol = marginaliseTerms(lp.terms, lp.x_lin, drop);
   ASSERT_TRUE(chol);
   ASSERT_EQ(chol->J.rows(), chol->J.cols());
-  EXPECT_EQ(chol->J.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(belowDiagonal(chol->J), 0.0);
   const Eigen::MatrixXd H = chol->J.transpose() * chol->J;
   const Eigen::VectorXd g = chol->J.transpose() * chol->r;
   const double lambda_min = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(H).eigenvalues()(0);
@@ -186,7 +191,7 @@ TEST(Marginaliser, CholeskyAndEigenSquareRootsGiveTheSamePrior) {
   const auto eig = marginaliseTerms(lp.terms, lp.x_lin, drop, o);
   ASSERT_TRUE(eig);
   ASSERT_EQ(eig->J.rows(), chol->J.rows());  // every eigenvalue kept
-  EXPECT_GT(eig->J.triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT(belowDiagonal(eig->J), 0.0);
   const double scale = H.cwiseAbs().maxCoeff();
   EXPECT_LT((eig->J.transpose() * eig->J - H).cwiseAbs().maxCoeff(), 1e-10 * scale);
   EXPECT_LT((eig->J.transpose() * eig->r - g).cwiseAbs().maxCoeff(), 1e-10 * std::max(1.0, g.cwiseAbs().maxCoeff()));
