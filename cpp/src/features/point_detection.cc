@@ -18,35 +18,16 @@ struct Candidate {
   float response;
 };
 
-// FAST corners (9-16, non-maximum suppression) where the mask is set. Only grid cells with free mask pixels are
-// searched: with a full set of tracks most of the image lies under their exclusion discs, so this skips most of it.
-// Each cell is searched with a margin of kFastMargin pixels (FAST's 3-pixel ring plus the 3x3 suppression), which
-// makes the result the same as a whole-image search.
-std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask, int threshold, int cols, int rows) {
-  constexpr int kFastMargin = 4;
+// FAST corners (9-16, non-maximum suppression) where the mask is set. One search of the whole image: searching
+// only the free part of each grid cell (with a margin for FAST's ring and the suppression) gave the same corners for
+// 15 % more instructions (48 small searches per round; 150 frames of V1_02 room hard: 1.35 -> 1.15 G).
+std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask, int threshold) {
   std::vector<Candidate> c;
   std::vector<cv::KeyPoint> kps;
-  for (int gy = 0; gy < rows; ++gy) {
-    for (int gx = 0; gx < cols; ++gx) {
-      const cv::Rect cell(gx * image.cols / cols, gy * image.rows / rows,
-                          (gx + 1) * image.cols / cols - gx * image.cols / cols,
-                          (gy + 1) * image.rows / rows - gy * image.rows / rows);
-      if (cell.area() == 0) continue;
-      // Only the part of the cell with free mask pixels is searched (its bounding box): the corners elsewhere would
-      // be dropped by the mask test below.
-      const cv::Rect free = cv::boundingRect(mask(cell));
-      if (free.area() == 0) continue;
-      const cv::Rect roi = cv::Rect(cell.x + free.x - kFastMargin, cell.y + free.y - kFastMargin,
-                                    free.width + 2 * kFastMargin, free.height + 2 * kFastMargin) &
-                           cv::Rect(0, 0, image.cols, image.rows);
-      kps.clear();
-      cv::FAST(image(roi), kps, threshold, /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
-      for (const cv::KeyPoint& k : kps) {
-        const cv::Point2f pt(k.pt.x + static_cast<float>(roi.x), k.pt.y + static_cast<float>(roi.y));
-        const cv::Point ip(cvRound(pt.x), cvRound(pt.y));
-        if (cell.contains(ip) && mask.at<unsigned char>(ip)) c.push_back({pt, k.response});
-      }
-    }
+  cv::FAST(image, kps, threshold, /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
+  for (const cv::KeyPoint& k : kps) {
+    const cv::Point ip(cvRound(k.pt.x), cvRound(k.pt.y));
+    if (mask.at<unsigned char>(ip)) c.push_back({k.pt, k.response});
   }
   return c;
 }
@@ -115,7 +96,7 @@ std::vector<cv::Point2f> detectCorners(const cv::Mat& image, cv::Mat* mask, int 
   // in the space that is still free. Shi-Tomasi: one round (its threshold is relative to the strongest corner).
   const bool fast = p.detector != "shi_tomasi";
   for (int th = std::max(1, p.fast_threshold);; th /= 2) {
-    std::vector<Candidate> cand = fast ? fastCandidates(image, *mask, th, cols, rows)
+    std::vector<Candidate> cand = fast ? fastCandidates(image, *mask, th)
                                        : shiTomasiCandidates(image, *mask, p.shi_tomasi_quality);
     std::sort(cand.begin(), cand.end(), [](const Candidate& a, const Candidate& b) {
       if (a.response != b.response) return a.response > b.response;

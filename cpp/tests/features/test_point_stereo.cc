@@ -1,12 +1,15 @@
 // Unrectified stereo matching of points on a synthetic plane with known depth.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
 #include "linnet/camera/camera_model.h"
+#include "linnet/core/error.h"
 #include "linnet/features/point_detection.h"
 #include "linnet/features/point_stereo.h"
 
@@ -161,6 +164,76 @@ TEST(PointStereo, PriorsThatDisagreeTakeTheRoundTrip) {
     if (!res[i].ok) continue;
     EXPECT_NEAR(res[i].px1.x, s.px0[i].x - d, 0.1) << i;
   }
+}
+
+// The plain ZNCC the kernel replaced: OpenCV's sub-pixel patches (single precision) and statistics.
+double plainZncc(const cv::Mat& img0, const cv::Point2f& c0, const cv::Mat& img1, const cv::Point2f& c1, int h) {
+  const cv::Size size(2 * h + 1, 2 * h + 1);
+  cv::Mat a, b;
+  cv::getRectSubPix(img0, size, c0, a, CV_32F);
+  cv::getRectSubPix(img1, size, c1, b, CV_32F);
+  cv::Scalar ma, sa, mb, sb;
+  cv::meanStdDev(a, ma, sa);
+  cv::meanStdDev(b, mb, sb);
+  if (sa[0] < 1e-3 || sb[0] < 1e-3) return -1.0;
+  a -= ma[0];
+  b -= mb[0];
+  return a.dot(b) / (sa[0] * sb[0] * static_cast<double>(a.total()));
+}
+
+// The same in double precision from the pixels: bilinear weights of the centre's fraction, border replicated.
+double doubleZncc(const cv::Mat& img0, const cv::Point2f& c0, const cv::Mat& img1, const cv::Point2f& c1, int h) {
+  const auto patch = [h](const cv::Mat& img, const cv::Point2f& c) {
+    std::vector<double> v;
+    const float x0 = c.x - static_cast<float>(h), y0 = c.y - static_cast<float>(h);
+    const int ix = cvFloor(x0), iy = cvFloor(y0);
+    const double a = x0 - static_cast<float>(ix), b = y0 - static_cast<float>(iy);
+    const auto at = [&](int x, int y) -> double {
+      return img.at<unsigned char>(std::clamp(y, 0, img.rows - 1), std::clamp(x, 0, img.cols - 1));
+    };
+    for (int y = 0; y <= 2 * h; ++y)
+      for (int x = 0; x <= 2 * h; ++x)
+        v.push_back((1 - a) * (1 - b) * at(ix + x, iy + y) + a * (1 - b) * at(ix + x + 1, iy + y) +
+                    (1 - a) * b * at(ix + x, iy + y + 1) + a * b * at(ix + x + 1, iy + y + 1));
+    return v;
+  };
+  const std::vector<double> a = patch(img0, c0), b = patch(img1, c1);
+  const double n = static_cast<double>(a.size());
+  double ma = 0, mb = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) ma += a[k] / n, mb += b[k] / n;
+  double saa = 0, sbb = 0, sab = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    saa += (a[k] - ma) * (a[k] - ma);
+    sbb += (b[k] - mb) * (b[k] - mb);
+    sab += (a[k] - ma) * (b[k] - mb);
+  }
+  if (std::sqrt(saa / n) < 1e-3 || std::sqrt(sbb / n) < 1e-3) return -1.0;
+  return sab / std::sqrt(saa * sbb);
+}
+
+TEST(PointStereo, SubpixelZnccAgreesWithThePlainVersions) {
+  // Centres inside, across the border (replicated pixels) and exactly on pixels; patches of several sizes.
+  const cv::Mat img0 = texture();
+  cv::Mat img1;
+  cv::GaussianBlur(img0, img1, cv::Size(0, 0), 0.8);
+  cv::RNG rng(3);
+  int compared = 0;
+  for (int i = 0; i < 400; ++i) {
+    const int h = 1 + i % 6;
+    const cv::Point2f c0(rng.uniform(-3.f, 643.f), rng.uniform(-3.f, 483.f));
+    const cv::Point2f c1 = i % 5 == 0 ? cv::Point2f(std::round(c0.x), std::round(c0.y))
+                                      : c0 + cv::Point2f(rng.uniform(-2.f, 2.f), rng.uniform(-2.f, 2.f));
+    const double z = subpixelZncc(img0, c0, img1, c1, h);
+    EXPECT_NEAR(z, doubleZncc(img0, c0, img1, c1, h), 1e-9) << i;
+    // OpenCV samples in single precision, and gives the right-hand neighbour a weight of at least 1e-4 (so a patch
+    // on whole pixels is not exactly those pixels): the same to about 1e-4 of the ZNCC's range.
+    EXPECT_NEAR(z, plainZncc(img0, c0, img1, c1, h), 1e-4) << i;
+    ++compared;
+  }
+  EXPECT_EQ(compared, 400);
+  const cv::Mat flat(480, 640, CV_8U, cv::Scalar(90));
+  EXPECT_EQ(subpixelZncc(flat, cv::Point2f(100.3f, 50.5f), img1, cv::Point2f(100.f, 50.f), 4), -1.0);
+  EXPECT_THROW(subpixelZncc(img0, cv::Point2f(0, 0), img1, cv::Point2f(0, 0), 17), UsageError);
 }
 
 TEST(PointStereo, OffEpipolarImageIsRejected) {

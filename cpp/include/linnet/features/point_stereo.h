@@ -53,6 +53,11 @@ struct StereoPointStats {
   int matched = 0;
 };
 
+/// ZNCC of the (2h+1)^2 patches of two 8-bit images around sub-pixel centres (bilinear samples placed as
+/// cv::getRectSubPix places them, pixels beyond the border replicated); -1 when either patch is flat (standard
+/// deviation below 1e-3 grey levels). h in [0, 16].
+double subpixelZncc(const cv::Mat& img0, const cv::Point2f& c0, const cv::Mat& img1, const cv::Point2f& c1, int h);
+
 /// Matches cam0 points into cam1. pyr0 / pyr1: pyramids of cam0 / cam1 from cv::buildOpticalFlowPyramid (with
 /// derivatives). px0 / uv0: the points in cam0 (pixels / normalised). prior (optional, same size, may hold NaN for
 /// "none"): an expected cam1 pixel per point (e.g. last frame's match moved by the point's flow); points with a prior
