@@ -269,7 +269,7 @@ void EstimatorCore::marginaliseOldest() {
   }
   for (const ResidualSpec& r : inertial) {
     for (BlockKey k : r.keys) regFrameKey(k);
-    m.addResidual(r.cost, nullptr, r.keys.vector());
+    m.addResidual(r.cost, nullptr, std::span<const BlockKey>(r.keys.begin(), r.keys.size()));
   }
   std::vector<BlockKey> drop = drop_frame;
   // A visual residual: its frame (and calibration) blocks are kept, its landmark is dropped with the frame.
@@ -285,7 +285,7 @@ void EstimatorCore::marginaliseOldest() {
         drop.push_back(r.keys[b]);
       }
     }
-    m.addResidual(r.cost, lossOf(r), r.keys.vector());
+    m.addResidual(r.cost, lossOf(r), std::span<const BlockKey>(r.keys.begin(), r.keys.size()));
   };
   std::vector<ResidualSpec> visual = points_.residuals(window_, old_id, false, frameWeights(false));
   correctCalibration(&visual);

@@ -10,14 +10,14 @@
 
 namespace linnet {
 
-LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info)
+LineProjection::LineProjection(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info)
     : s_(s.x(), s.y(), 1.0),
       e_(e.x(), e.y(), 1.0),
       R_C_B_(T_B_C.R().transpose()),
       t_B_C_(T_B_C.p),
       sqrt_info_(sqrt_info) {}
 
-void LineReprojectionFactor::poseTerms(const Pose& T_W_B, PoseTerms* terms) const {
+void LineProjection::poseTerms(const Pose& T_W_B, PoseTerms* terms) const {
   terms->Rt = T_W_B.R().transpose();
   terms->p = T_W_B.p;
   // The image line is linear in L_W: l = R_C_B (n_B - t x v_B) = M_n n_W + M_v v_W, with n_B = R^T (n_W - p x v_W)
@@ -27,16 +27,15 @@ void LineReprojectionFactor::poseTerms(const Pose& T_W_B, PoseTerms* terms) cons
   terms->M_v = R_C_B_ * K;
 }
 
-bool LineReprojectionFactor::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual,
-                                      Eigen::Matrix<double, 2, 6>* J_pose, Eigen::Matrix<double, 2, 6>* J_line) const {
+bool LineProjection::evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose,
+                              Eigen::Matrix<double, 2, 6>* J_line) const {
   PoseTerms terms;
   poseTerms(T_W_B, &terms);
   return evaluateWith(terms, L_W, residual, J_pose, J_line);
 }
 
-bool LineReprojectionFactor::evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2* residual,
-                                          Eigen::Matrix<double, 2, 6>* J_pose,
-                                          Eigen::Matrix<double, 2, 6>* J_line) const {
+bool LineProjection::evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2* residual,
+                                  Eigen::Matrix<double, 2, 6>* J_pose, Eigen::Matrix<double, 2, 6>* J_line) const {
   // Plücker W -> B -> C:  n_B = R^T (n_W - p x v_W), v_B = R^T v_W;  n_C = R_C_B (n_B - t_B_C x v_B), which is
   // M_n n_W + M_v v_W (poseTerms).
   const Vec3 n_W = L_W.head<3>(), v_W = L_W.tail<3>();
@@ -73,6 +72,9 @@ bool LineReprojectionFactor::evaluateWith(const PoseTerms& terms, const Vec6& L_
   return true;
 }
 
+LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info)
+    : projection_(s, e, T_B_C, sqrt_info) {}
+
 bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
                                                   double** jacobians) const {
   const bool want_pose = jacobians != nullptr && jacobians[0] != nullptr;
@@ -82,11 +84,11 @@ bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameter
   // The pose's terms from the cache when the pose block holds the same values (the line iterations), else anew.
   const double* pose = parameters[0];
   if (!cache_.valid || !std::equal(pose, pose + 7, cache_.block.begin())) {
-    poseTerms(poseFromBlock(pose), &cache_);
+    projection_.poseTerms(poseFromBlock(pose), &cache_);
     std::copy(pose, pose + 7, cache_.block.begin());
     cache_.valid = true;
   }
-  if (!evaluateWith(cache_, Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
+  if (!projection_.evaluateWith(cache_, Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
                     want_line ? &Jl : nullptr))
     return false;
   residuals[0] = r.x();

@@ -136,6 +136,7 @@ int LineLandmarks::triangulate(const Window& window) {
 
 std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId host_only,
                                                    const std::map<FrameId, double>& frame_weight) {
+  factors_.begin();
   std::vector<ResidualSpec> out;
   const double sqrt_info = focal_length_ / options_.pixel_sigma;
   for (auto& [id, lm] : landmarks_) {
@@ -154,7 +155,7 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
       auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C, bool cam1) {
         ResidualSpec r;
         if (cam1) r.cam1 = 0;
-        r.cost = std::make_shared<LineReprojectionFactor>(a, b, f->capture_shift * T_B_C, s);
+        r.cost = factors_.make(a, b, f->capture_shift * T_B_C, s);
         r.robust = true;
         r.line = true;
         r.blocks = {f->pose.data(), lm.plucker.data()};

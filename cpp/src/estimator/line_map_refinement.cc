@@ -57,7 +57,7 @@ bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinement
     }
     double total = 0.0;
     for (const LineSighting& o : sightings) {
-      const LineReprojectionFactor f(o.s, o.e, Pose(), options.focal_px);
+      const LineProjection f(o.s, o.e, Pose(), options.focal_px);
       Vec2 r;
       Eigen::Matrix<double, 2, 6> J_line;
       if (!f.evaluate(o.T_W_C, L, &r, nullptr, H != nullptr ? &J_line : nullptr))
@@ -124,7 +124,7 @@ double lineEndpointSigmaM(const Vec6& L_W, const std::vector<LineSighting>& sigh
   Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
   for (const LineSighting& o : sightings) {
     // The sighting's camera is the factor's body (identity extrinsics).
-    const LineReprojectionFactor f(o.s, o.e, Pose(), focal_px / pixel_sigma);
+    const LineProjection f(o.s, o.e, Pose(), focal_px / pixel_sigma);
     Vec2 r;
     Eigen::Matrix<double, 2, 6> J_line;
     if (!f.evaluate(o.T_W_C, L_W, &r, nullptr, &J_line)) continue;

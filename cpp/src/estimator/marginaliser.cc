@@ -196,24 +196,39 @@ void Marginaliser::setParameterBlockConstant(BlockKey key) {
 }
 
 void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss,
-                               std::vector<BlockKey> keys) {
+                               std::span<const BlockKey> keys) {
   if (!cost) throw UsageError("Marginaliser::addResidual: null cost function");
   const std::vector<int32_t>& sizes = cost->parameter_block_sizes();
   if (sizes.size() != keys.size())
     throw UsageError("Marginaliser::addResidual: cost function has " + std::to_string(sizes.size()) +
                      " parameter blocks but " + std::to_string(keys.size()) + " keys were given");
-  std::vector<Block*> blocks(keys.size());
+  const std::size_t first = key_store_.size();
+  const BlockKey* keys_before = key_store_.data();
+  Block* const* blocks_before = block_store_.data();
   for (std::size_t k = 0; k < keys.size(); ++k) {
     auto it = blocks_.find(keys[k]);
-    if (it == blocks_.end()) throw UsageError("Marginaliser::addResidual: unknown " + keyName(keys[k]));
-    if (it->second.ambient_size != sizes[k])
+    if (it == blocks_.end() || it->second.ambient_size != sizes[k]) {
+      key_store_.resize(first);
+      block_store_.resize(first);
+      if (it == blocks_.end()) throw UsageError("Marginaliser::addResidual: unknown " + keyName(keys[k]));
       throw UsageError("Marginaliser::addResidual: " + keyName(keys[k]) + " has size " +
                        std::to_string(it->second.ambient_size) + " but the cost function's block " +
                        std::to_string(k) + " has size " + std::to_string(sizes[k]));
-    blocks[k] = &it->second;
+    }
+    key_store_.push_back(keys[k]);
+    block_store_.push_back(&it->second);
   }
   const auto* tangent = dynamic_cast<const TangentJacobians*>(cost.get());
-  residuals_.push_back(Residual{std::move(cost), loss, std::move(keys), std::move(blocks), tangent});
+  residuals_.push_back(Residual{std::move(cost), loss, first, {}, {}, tangent});
+  if (key_store_.data() != keys_before || block_store_.data() != blocks_before) {
+    for (Residual& res : residuals_) viewStores(&res, res.keys.size());
+  }
+  viewStores(&residuals_.back(), keys.size());
+}
+
+void Marginaliser::viewStores(Residual* res, std::size_t count) const {
+  res->keys = std::span<const BlockKey>(key_store_.data() + res->first, count);
+  res->blocks = std::span<Block* const>(block_store_.data() + res->first, count);
 }
 
 std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std::vector<BlockKey>& drop) {

@@ -75,6 +75,8 @@ int PointLandmarks::triangulate(const Window& window) {
 
 std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameId host_only, bool all_right,
                                                     const std::map<FrameId, double>& frame_weight) {
+  reprojection_factors_.begin();
+  stereo_factors_.begin();
   std::vector<ResidualSpec> out;
   const double base_sqrt_info = pointSqrtInformation(options_.focal_length, options_.pixel_sigma);
   const auto sqrtInfo = [&](FrameId f) {
@@ -97,7 +99,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
         if (!ho.has_right) continue;
         // Kind 3: left -> right in the host frame; constrains the inverse depth only.
         ResidualSpec r;
-        r.cost = std::make_shared<PointStereoFactor>(ho.uv0, ho.uv1, T_B_C0_, *T_B_C1_, sqrtInfo(fid));  // no shift
+        r.cost = stereo_factors_.make(ho.uv0, ho.uv1, T_B_C0_, *T_B_C1_, sqrtInfo(fid));  // no shift
         r.robust = true;
         r.blocks = {&lm.inv_depth};
         r.keys = {lm_key};
@@ -109,7 +111,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
       const double sqrt_info = sqrtInfo(fid);
       ResidualSpec r1;
       const Pose T_B_Ch = host->capture_shift * T_B_C0_;
-      r1.cost = std::make_shared<PointReprojectionFactor>(ho.uv0, o.uv0, T_B_Ch, f->capture_shift * T_B_C0_, sqrt_info);
+      r1.cost = reprojection_factors_.make(ho.uv0, o.uv0, T_B_Ch, f->capture_shift * T_B_C0_, sqrt_info);
       r1.robust = true;
       r1.blocks = {host->pose.data(), f->pose.data(), &lm.inv_depth};
       r1.keys = {frameBlockKey(lm.host, BlockKind::kPose), frameBlockKey(fid, BlockKind::kPose), lm_key};
@@ -117,7 +119,7 @@ std::vector<ResidualSpec> PointLandmarks::residuals(const Window& window, FrameI
         // Kind 2: host cam0 -> this frame's cam1.
         ResidualSpec r2;
         r2.cost =
-            std::make_shared<PointReprojectionFactor>(ho.uv0, o.uv1, T_B_Ch, f->capture_shift * *T_B_C1_, sqrt_info);
+            reprojection_factors_.make(ho.uv0, o.uv1, T_B_Ch, f->capture_shift * *T_B_C1_, sqrt_info);
         r2.robust = true;
         r2.blocks = r1.blocks;
         r2.keys = r1.keys;

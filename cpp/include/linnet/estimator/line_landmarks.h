@@ -20,6 +20,8 @@
 #include "linnet/core/map_line.h"
 #include "linnet/core/pose.h"
 #include "linnet/estimator/estimator_options.h"
+#include "linnet/estimator/factor_pool.h"
+#include "linnet/estimator/factors/line_factor.h"
 #include "linnet/estimator/line_map_refinement.h"
 #include "linnet/estimator/residual_spec.h"
 #include "linnet/estimator/window.h"
@@ -183,6 +185,7 @@ class LineLandmarks {
   // Front-end ids re-identified as an older window line (reidentify): new id -> the line's id, while it is in the window.
   std::map<std::int64_t, std::int64_t> alias_;
   LineRejectionStats rejections_;
+  FactorPool<LineReprojectionFactor> factors_;  // residuals()' factors, reused from call to call
 };
 
 }  // namespace linnet

@@ -24,8 +24,10 @@
 // at its last step.
 #pragma once
 
+#include <initializer_list>
 #include <map>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include <ceres/cost_function.h>
@@ -88,7 +90,11 @@ class Marginaliser {
   /// is not owned and must stay alive until marginalise() returns. Throws UsageError on an unknown key or a
   /// size mismatch.
   void addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss,
-                   std::vector<BlockKey> keys);
+                   std::span<const BlockKey> keys);
+  void addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres::LossFunction* loss,
+                   std::initializer_list<BlockKey> keys) {
+    addResidual(std::move(cost), loss, std::span<const BlockKey>(keys.begin(), keys.size()));
+  }
 
   /// Linearises every residual that touches a block of `drop` at the registered values, eliminates `drop` and
   /// returns the prior over every other non-constant block those residuals touch (in registration order).
@@ -117,10 +123,15 @@ class Marginaliser {
   struct Residual {
     std::shared_ptr<ceres::CostFunction> cost;
     ceres::LossFunction* loss = nullptr;
-    std::vector<BlockKey> keys;
-    std::vector<Block*> blocks;                 // the keys' blocks (a std::map's nodes do not move)
+    std::size_t first = 0;                      // where its keys and blocks start in key_store_ / block_store_
+    std::span<const BlockKey> keys;             // views of the stores (re-pointed when a store grows: two heap
+    std::span<Block* const> blocks;             // vectors per residual cost more than the residual's own
+                                                // evaluation); the blocks are a std::map's nodes, which do not move
     const TangentJacobians* tangent = nullptr;  // cost, when it gives tangent-space Jacobians
   };
+
+  /// Points a residual's key and block views at its `count` entries of the stores.
+  void viewStores(Residual* res, std::size_t count) const;
 
   /// `dropped` reordered so that the first *num_decoupled blocks share no residual (block-diagonal H_PP).
   std::vector<BlockKey> orderForElimination(const std::vector<BlockKey>& dropped,
@@ -130,6 +141,8 @@ class Marginaliser {
   MarginaliserOptions options_;
   std::map<BlockKey, Block> blocks_;
   std::vector<Residual> residuals_;
+  std::vector<BlockKey> key_store_;  // every residual's keys, in order
+  std::vector<Block*> block_store_;  // and their blocks
   MarginalisationStats stats_;
 };
 

@@ -15,6 +15,8 @@
 #include "linnet/core/frame_observations.h"
 #include "linnet/core/pose.h"
 #include "linnet/estimator/estimator_options.h"
+#include "linnet/estimator/factor_pool.h"
+#include "linnet/estimator/factors/point_factors.h"
 #include "linnet/estimator/residual_spec.h"
 #include "linnet/estimator/window.h"
 
@@ -99,6 +101,8 @@ class PointLandmarks {
   Pose T_B_C0_;
   std::optional<Pose> T_B_C1_;
   std::map<std::int64_t, PointLandmark> landmarks_;
+  FactorPool<PointReprojectionFactor> reprojection_factors_;  // residuals()' factors, reused from call to call
+  FactorPool<PointStereoFactor> stereo_factors_;
 };
 
 }  // namespace linnet

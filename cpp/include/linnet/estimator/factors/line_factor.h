@@ -23,43 +23,66 @@ namespace linnet {
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
-class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public TangentJacobians {
+/// The residual's arithmetic without the Ceres cost function around it (no heap allocation: the map refinement
+/// evaluates it for every sighting of every line that leaves the window, at every iteration).
+class LineProjection {
  public:
   /// s, e: endpoints observed in camera C (normalised, undistorted); T_B_C: that camera's extrinsics; sqrt_info:
   /// focal / sigma (sigma in pixels), optionally times a weight.
-  LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info);
-
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
-  /// The pose Jacobian in the tangent space, the line's w.r.t. the Plücker coordinates (as Evaluate).
-  bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const override;
+  LineProjection(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info);
 
   /// Residual, the tangent pose Jacobian (w.r.t. [dp, dtheta]) and the Jacobian w.r.t. the Plücker coordinates;
   /// outputs may be nullptr. False if the line projects to a point or the result is not finite.
   bool evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose,
                 Eigen::Matrix<double, 2, 6>* J_line) const;
 
- private:
-  // The pose's share of the evaluation: R^T, p and the two 3 x 3 maps of the Plücker coordinates in W to the image
-  // line (M_n = R_C_B R^T, M_v = R_C_B K with K = -R^T [p]x - [t]x R^T). The window solver's line iterations
-  // evaluate each factor several times at one pose (only the line moves), so evaluateTangentSpace keeps the last
-  // pose's terms. The cache makes concurrent evaluations of one factor object unsafe; the window solves are
-  // single-threaded.
+  /// The pose's share of the evaluation: R^T, p and the two 3 x 3 maps of the Plücker coordinates in W to the image
+  /// line (M_n = R_C_B R^T, M_v = R_C_B K with K = -R^T [p]x - [t]x R^T).
   struct PoseTerms {
-    std::array<double, 7> block{};  // the pose block they were computed from
+    std::array<double, 7> block{};  // the pose block they were computed from (kept by the factor's cache)
     Mat3 Rt;
     Vec3 p;
     Mat3 M_n, M_v;  // the image line l = M_n n_W + M_v v_W
     bool valid = false;
   };
   void poseTerms(const Pose& T_W_B, PoseTerms* terms) const;
+  /// evaluate() with the pose's terms given.
   bool evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose,
                     Eigen::Matrix<double, 2, 6>* J_line) const;
-  mutable PoseTerms cache_;
 
+ private:
   Vec3 s_, e_;  // homogenised endpoints
   Mat3 R_C_B_;  // the camera's extrinsics T_B_C: its rotation (transposed, converted from the quaternion once)
   Vec3 t_B_C_;  // and its position in B
   double sqrt_info_;
+};
+
+class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public TangentJacobians {
+ public:
+  /// As LineProjection's.
+  LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info);
+  /// As if constructed anew with these arguments (FactorPool).
+  void reset(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info) {
+    projection_ = LineProjection(s, e, T_B_C, sqrt_info);
+    cache_.valid = false;
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  /// The pose Jacobian in the tangent space, the line's w.r.t. the Plücker coordinates (as Evaluate).
+  bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const override;
+
+  /// LineProjection::evaluate.
+  bool evaluate(const Pose& T_W_B, const Vec6& L_W, Vec2* residual, Eigen::Matrix<double, 2, 6>* J_pose,
+                Eigen::Matrix<double, 2, 6>* J_line) const {
+    return projection_.evaluate(T_W_B, L_W, residual, J_pose, J_line);
+  }
+
+ private:
+  LineProjection projection_;
+  // The window solver's line iterations evaluate each factor several times at one pose (only the line moves), so
+  // evaluateTangentSpace keeps the last pose's terms. The cache makes concurrent evaluations of one factor object
+  // unsafe; the window solves are single-threaded.
+  mutable LineProjection::PoseTerms cache_;
 };
 
 /// Mean endpoint-to-line distance in pixels of one observation (focal_px times the normalised distances), +infinity

@@ -28,6 +28,9 @@ class PointReprojectionFactor : public ceres::SizedCostFunction<2, 7, 7, 1>, pub
  public:
   PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost,
                           const Pose& T_B_Ctarget, double sqrt_info);
+  /// As if constructed anew with these arguments (FactorPool).
+  void reset(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost, const Pose& T_B_Ctarget,
+             double sqrt_info);
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
   bool evaluateTangentSpace(double const* const* parameters, double* residuals, double** jacobians) const override;
@@ -52,6 +55,8 @@ class PointStereoFactor : public ceres::SizedCostFunction<2, 1> {
  public:
   PointStereoFactor(const Vec2& uv_left, const Vec2& uv_right, const Pose& T_B_C0, const Pose& T_B_C1,
                     double sqrt_info);
+  /// As if constructed anew with these arguments (FactorPool).
+  void reset(const Vec2& uv_left, const Vec2& uv_right, const Pose& T_B_C0, const Pose& T_B_C1, double sqrt_info);
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
 
