@@ -56,7 +56,8 @@ void samplePatch(const cv::Mat& img, const cv::Point2f& c, int h, double* out) {
   const int side = 2 * h + 1;
   const float x0 = c.x - static_cast<float>(h), y0 = c.y - static_cast<float>(h);
   const int ix = cvFloor(x0), iy = cvFloor(y0);
-  const double a = static_cast<double>(x0 - static_cast<float>(ix)), b = static_cast<double>(y0 - static_cast<float>(iy));
+  const double a = static_cast<double>(x0 - static_cast<float>(ix));
+  const double b = static_cast<double>(y0 - static_cast<float>(iy));
   const double w00 = (1.0 - a) * (1.0 - b), w01 = a * (1.0 - b), w10 = (1.0 - a) * b, w11 = a * b;
   if (ix >= 0 && iy >= 0 && ix + side < img.cols && iy + side < img.rows) {
     for (int y = 0; y < side; ++y) {
