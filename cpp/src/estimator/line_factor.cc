@@ -89,7 +89,7 @@ bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameter
     cache_.valid = true;
   }
   if (!projection_.evaluateWith(cache_, Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
-                    want_line ? &Jl : nullptr))
+                                want_line ? &Jl : nullptr))
     return false;
   residuals[0] = r.x();
   residuals[1] = r.y();

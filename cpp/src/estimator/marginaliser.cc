@@ -119,13 +119,13 @@ std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockK
   const std::size_t nd = dropped.size();
   std::vector<int> first_of(nd + 1, 0);
   for (const Residual* res : used)
-    for (const Block* b : res->blocks)
+    for (const Block* b : blocksOf(*res))
       if (b->drop_index >= 0) ++first_of[static_cast<std::size_t>(b->drop_index) + 1];
   for (std::size_t i = 1; i <= nd; ++i) first_of[i] += first_of[i - 1];
   std::vector<const Residual*> touching(static_cast<std::size_t>(first_of.back()));
   std::vector<int> filled(first_of.begin(), first_of.end() - 1);
   for (const Residual* res : used)
-    for (const Block* b : res->blocks)
+    for (const Block* b : blocksOf(*res))
       if (b->drop_index >= 0) {
         int& at = filled[static_cast<std::size_t>(b->drop_index)];
         touching[static_cast<std::size_t>(at++)] = res;
@@ -143,7 +143,7 @@ std::vector<BlockKey> Marginaliser::orderForElimination(const std::vector<BlockK
   std::vector<unsigned char> chosen(nd, 0);
   for (const int i : by_size) {
     const auto coupled = [&](const Residual* res) {
-      return std::any_of(res->blocks.begin(), res->blocks.end(), [&](const Block* b) {
+      return std::ranges::any_of(blocksOf(*res), [&](const Block* b) {
         const int j = b->drop_index;
         return j >= 0 && j != i && chosen[static_cast<std::size_t>(j)];
       });
@@ -203,8 +203,6 @@ void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres:
     throw UsageError("Marginaliser::addResidual: cost function has " + std::to_string(sizes.size()) +
                      " parameter blocks but " + std::to_string(keys.size()) + " keys were given");
   const std::size_t first = key_store_.size();
-  const BlockKey* keys_before = key_store_.data();
-  Block* const* blocks_before = block_store_.data();
   for (std::size_t k = 0; k < keys.size(); ++k) {
     auto it = blocks_.find(keys[k]);
     if (it == blocks_.end() || it->second.ambient_size != sizes[k]) {
@@ -219,16 +217,7 @@ void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres:
     block_store_.push_back(&it->second);
   }
   const auto* tangent = dynamic_cast<const TangentJacobians*>(cost.get());
-  residuals_.push_back(Residual{std::move(cost), loss, first, {}, {}, tangent});
-  if (key_store_.data() != keys_before || block_store_.data() != blocks_before) {
-    for (Residual& res : residuals_) viewStores(&res, res.keys.size());
-  }
-  viewStores(&residuals_.back(), keys.size());
-}
-
-void Marginaliser::viewStores(Residual* res, std::size_t count) const {
-  res->keys = std::span<const BlockKey>(key_store_.data() + res->first, count);
-  res->blocks = std::span<Block* const>(block_store_.data() + res->first, count);
+  residuals_.push_back(Residual{std::move(cost), loss, first, keys.size(), tangent});
 }
 
 std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std::vector<BlockKey>& drop) {
@@ -252,12 +241,11 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<const Residual*> used;
   std::set<BlockKey> kept_set;
   for (const Residual& res : residuals_) {
-    const bool touches =
-        std::any_of(res.blocks.begin(), res.blocks.end(), [](const Block* b) { return b->drop_index >= 0; });
-    if (!touches) continue;
+    const std::span<Block* const> blocks = blocksOf(res);
+    if (!std::ranges::any_of(blocks, [](const Block* b) { return b->drop_index >= 0; })) continue;
     used.push_back(&res);
-    for (std::size_t k = 0; k < res.keys.size(); ++k)
-      if (res.blocks[k]->drop_index < 0 && !res.blocks[k]->constant) kept_set.insert(res.keys[k]);
+    for (std::size_t k = 0; k < blocks.size(); ++k)
+      if (blocks[k]->drop_index < 0 && !blocks[k]->constant) kept_set.insert(keysOf(res)[k]);
   }
   if (used.empty()) return nullptr;
   // Two-stage elimination: first a set of dropped blocks with no residual between any two of them (typically
@@ -299,9 +287,11 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   std::vector<std::pair<int, int>> dense;
   for (const Residual* res : used) {
     const int nr = res->cost->num_residuals();
-    const std::size_t nb = res->keys.size();
+    const std::span<const BlockKey> keys = keysOf(*res);
+    const std::span<Block* const> blocks = blocksOf(*res);
+    const std::size_t nb = keys.size();
     if (nr != 2)
-      for (const Block* b : res->blocks)
+      for (const Block* b : blocks)
         if (!b->constant && std::find(dense.begin(), dense.end(), std::make_pair(b->offset, b->tangent_size)) ==
                                 dense.end())
           dense.emplace_back(b->offset, b->tangent_size);
@@ -312,7 +302,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
     // (Ceres' ambient ones would be converted there and back).
     const auto tangentGiven = [&](const Block& b) { return res->tangent != nullptr && b.pose; };
     for (std::size_t k = 0; k < nb; ++k) {
-      const Block& b = *res->blocks[k];
+      const Block& b = *blocks[k];
       params[k] = b.values.data();
       if (!b.constant) {
         jac_amb[k].resize(nr, tangentGiven(b) ? b.tangent_size : b.ambient_size);
@@ -324,13 +314,13 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
                                ? res->tangent->evaluateTangentSpace(params.data(), r.data(), jac_ptr.data())
                                : res->cost->Evaluate(params.data(), r.data(), jac_ptr.data());
     if (!evaluated)
-      throw InputError("Marginaliser::marginalise: a cost function over " + keyName(res->keys.front()) +
+      throw InputError("Marginaliser::marginalise: a cost function over " + keyName(keys.front()) +
                        " failed to evaluate at the linearisation point");
     // Tangent Jacobian per non-constant block.
     J.resize(nb);
     bool finite = r.allFinite();
     for (std::size_t k = 0; k < nb; ++k) {
-      const Block& b = *res->blocks[k];
+      const Block& b = *blocks[k];
       if (b.constant) {
         J[k].resize(0, 0);
         continue;
@@ -340,23 +330,23 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
       } else {
         plus.resize(b.ambient_size, b.tangent_size);
         if (!b.manifold->PlusJacobian(b.values.data(), plus.data()))
-          throw InputError("Marginaliser::marginalise: PlusJacobian failed for " + keyName(res->keys[k]));
+          throw InputError("Marginaliser::marginalise: PlusJacobian failed for " + keyName(keys[k]));
         J[k].noalias() = jac_amb[k] * plus;
       }
       finite = finite && J[k].allFinite();
     }
     if (!finite)
       throw InputError("Marginaliser::marginalise: non-finite residual or Jacobian over " +
-                       keyName(res->keys.front()));
+                       keyName(keys.front()));
     if (res->loss != nullptr) applyLoss(*res->loss, &r, &J);
     // Block-wise accumulation: only the touched blocks of H and g change.
     for (std::size_t a = 0; a < nb; ++a) {
       if (J[a].size() == 0) continue;
-      const int oa = res->blocks[a]->offset;
+      const int oa = blocks[a]->offset;
       g.segment(oa, J[a].cols()).noalias() += J[a].transpose() * r;
       for (std::size_t b = 0; b < nb; ++b) {
         if (J[b].size() == 0) continue;
-        const int ob = res->blocks[b]->offset;
+        const int ob = blocks[b]->offset;
         if (nr == 2)
           addTwoRowProduct(J[a], J[b], oa, ob, &H);
         else

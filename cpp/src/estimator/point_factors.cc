@@ -11,12 +11,9 @@ namespace linnet {
 
 PointReprojectionFactor::PointReprojectionFactor(const Vec2& uv_host, const Vec2& uv_target,
                                                  const Pose& T_B_Chost, const Pose& T_B_Ctarget,
-                                                 double sqrt_info)
-    : uv_host_(uv_host),
-      uv_target_(uv_target),
-      T_B_Ch_(T_B_Chost),
-      T_B_Ct_(T_B_Ctarget),
-      sqrt_info_(sqrt_info) {}
+                                                 double sqrt_info) {
+  reset(uv_host, uv_target, T_B_Chost, T_B_Ctarget, sqrt_info);
+}
 
 void PointReprojectionFactor::reset(const Vec2& uv_host, const Vec2& uv_target, const Pose& T_B_Chost,
                                     const Pose& T_B_Ctarget, double sqrt_info) {
@@ -91,8 +88,9 @@ bool PointReprojectionFactor::Evaluate(double const* const* parameters, double* 
 }
 
 PointStereoFactor::PointStereoFactor(const Vec2& uv_left, const Vec2& uv_right, const Pose& T_B_C0,
-                                     const Pose& T_B_C1, double sqrt_info)
-    : uv_left_(uv_left), uv_right_(uv_right), T_C1_C0_(T_B_C1.inverse() * T_B_C0), sqrt_info_(sqrt_info) {}
+                                     const Pose& T_B_C1, double sqrt_info) {
+  reset(uv_left, uv_right, T_B_C0, T_B_C1, sqrt_info);
+}
 
 void PointStereoFactor::reset(const Vec2& uv_left, const Vec2& uv_right, const Pose& T_B_C0, const Pose& T_B_C1,
                               double sqrt_info) {

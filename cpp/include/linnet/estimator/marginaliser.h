@@ -123,15 +123,17 @@ class Marginaliser {
   struct Residual {
     std::shared_ptr<ceres::CostFunction> cost;
     ceres::LossFunction* loss = nullptr;
-    std::size_t first = 0;                      // where its keys and blocks start in key_store_ / block_store_
-    std::span<const BlockKey> keys;             // views of the stores (re-pointed when a store grows: two heap
-    std::span<Block* const> blocks;             // vectors per residual cost more than the residual's own
-                                                // evaluation); the blocks are a std::map's nodes, which do not move
+    std::size_t first = 0;                      // its keys and blocks: key_store_ / block_store_ [first, + count)
+    std::size_t count = 0;                      // (two heap vectors per residual cost more than its evaluation)
     const TangentJacobians* tangent = nullptr;  // cost, when it gives tangent-space Jacobians
   };
-
-  /// Points a residual's key and block views at its `count` entries of the stores.
-  void viewStores(Residual* res, std::size_t count) const;
+  std::span<const BlockKey> keysOf(const Residual& res) const {
+    return std::span<const BlockKey>(key_store_).subspan(res.first, res.count);
+  }
+  /// The keys' blocks (a std::map's nodes, which do not move).
+  std::span<Block* const> blocksOf(const Residual& res) const {
+    return std::span<Block* const>(block_store_).subspan(res.first, res.count);
+  }
 
   /// `dropped` reordered so that the first *num_decoupled blocks share no residual (block-diagonal H_PP).
   std::vector<BlockKey> orderForElimination(const std::vector<BlockKey>& dropped,
