@@ -21,13 +21,18 @@ struct Candidate {
 // FAST corners (9-16, non-maximum suppression) where the mask is set. One search of the whole image: searching
 // only the free part of each grid cell (with a margin for FAST's ring and the suppression) gave the same corners for
 // 15 % more instructions (48 small searches per round; 150 frames of V1_02 room hard: 1.35 -> 1.15 G).
-std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask, int threshold) {
+// `whole` (may be null) receives the image's corners before the mask.
+std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask, int threshold, FastCorners* whole) {
   std::vector<Candidate> c;
   std::vector<cv::KeyPoint> kps;
   cv::FAST(image, kps, threshold, /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
   for (const cv::KeyPoint& k : kps) {
     const cv::Point ip(cvRound(k.pt.x), cvRound(k.pt.y));
     if (mask.at<unsigned char>(ip)) c.push_back({k.pt, k.response});
+  }
+  if (whole != nullptr) {
+    whole->threshold = threshold;
+    whole->keypoints = std::move(kps);
   }
   return c;
 }
@@ -78,7 +83,7 @@ cv::Mat detectionMask(const cv::Size& size, const std::vector<cv::Point2f>& poin
 }
 
 std::vector<cv::Point2f> detectCorners(const cv::Mat& image, cv::Mat* mask, int max_new,
-                                       const PointDetectorParams& p) {
+                                       const PointDetectorParams& p, FastCorners* first_round) {
   if (image.type() != CV_8UC1) throw UsageError("detectCorners: needs an 8-bit single-channel image");
   if (mask->size() != image.size() || mask->type() != CV_8UC1)
     throw UsageError("detectCorners: the mask must be 8-bit and of the image's size");
@@ -96,7 +101,8 @@ std::vector<cv::Point2f> detectCorners(const cv::Mat& image, cv::Mat* mask, int 
   // in the space that is still free. Shi-Tomasi: one round (its threshold is relative to the strongest corner).
   const bool fast = p.detector != "shi_tomasi";
   for (int th = std::max(1, p.fast_threshold);; th /= 2) {
-    std::vector<Candidate> cand = fast ? fastCandidates(image, *mask, th)
+    const bool first = th == std::max(1, p.fast_threshold);
+    std::vector<Candidate> cand = fast ? fastCandidates(image, *mask, th, first ? first_round : nullptr)
                                        : shiTomasiCandidates(image, *mask, p.shi_tomasi_quality);
     std::sort(cand.begin(), cand.end(), [](const Candidate& a, const Candidate& b) {
       if (a.response != b.response) return a.response > b.response;

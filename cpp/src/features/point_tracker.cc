@@ -75,6 +75,7 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
     throw UsageError(os.str());
   }
   stats_ = PointTrackerStats();
+  fast_corners_ = FastCorners{};
   stats_.previous = static_cast<int>(tracks_.size());
 
   // Never write into the caller's images: the preprocessed copies are fresh buffers.
@@ -295,7 +296,8 @@ void PointTracker::replenish(const cv::Mat& image) {
 
   const int need = opt_.max_points - static_cast<int>(tracks_.size());
   if (need <= 0 || need < std::min(opt_.min_new_points, opt_.max_points)) return;
-  for (const cv::Point2f& p : detectCorners(image, &mask, need, dp)) {
+  // The corners of the raw image only: a CLAHE copy's are not the left image's.
+  for (const cv::Point2f& p : detectCorners(image, &mask, need, dp, opt_.clahe ? nullptr : &fast_corners_)) {
     Vec2 uv;
     if (!cam0_.undistort(toEigen(p), &uv)) continue;
     Track tr;

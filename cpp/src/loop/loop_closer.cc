@@ -40,8 +40,9 @@ bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left
 }
 
 void LoopCloser::queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left,
-                               const std::vector<PointObservation>& points, const std::vector<LineObservation>& lines) {
-  Queued q{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_)), {}, {}};
+                               const std::vector<PointObservation>& points, const std::vector<LineObservation>& lines,
+                               const FastCorners* corners) {
+  Queued q{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_), corners), {}, {}};
   if (options_.use_lines) describePlaceLines(left, lines, LbdOptions{}, &q.place);
   queued_.push_back(std::move(q));
 }

@@ -16,7 +16,7 @@
 namespace linnet {
 
 PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const std::vector<PointObservation>& points,
-                            const Pose& T_C1_C0, const PlaceDescription& options) {
+                            const Pose& T_C1_C0, const PlaceDescription& options, const FastCorners* found) {
   PlaceFeatures f;
   if (left.empty()) return f;
   // Upright descriptors (angle 0): the IMU keeps roll and pitch, and loops are searched within a bounded view angle.
@@ -30,7 +30,10 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
   const int n_tracked = static_cast<int>(kps.size());
   if (options.corners > 0) {
     std::vector<cv::KeyPoint> corners;
-    cv::FAST(left, corners, options.fast_threshold, true);
+    if (found != nullptr && found->threshold == options.fast_threshold)
+      corners = found->keypoints;
+    else
+      cv::FAST(left, corners, options.fast_threshold, true);
     cv::KeyPointsFilter::retainBest(corners, options.corners);
     // Strongest first (retainBest only partitions): the loop closer's database keeps a prefix of them.
     std::stable_sort(corners.begin(), corners.end(),

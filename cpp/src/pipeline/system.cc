@@ -35,6 +35,7 @@ struct FrameInput {
 struct ObservationItem {
   FrameObservations obs;
   cv::Mat left;  // for the loop closer's keyframe descriptors (only when loop closure is on)
+  FastCorners corners;  // left's FAST corners from the point tracker's replenishment, if it searched (likewise)
   double frontend_ms = 0.0;
   double point_cpu_ms = 0.0;
   double line_cpu_ms = 0.0;
@@ -162,6 +163,7 @@ struct System::Impl {
         const auto tp = Clock::now();
         const double cp = threadCpuMs();
         points.track(in->t, in->left, in->right, &item.obs.points);
+        if (loop) item.corners = points.takeFastCorners();
         item.point_cpu_ms = threadCpuMs() - cp;
         item.obs.point_ms = msSince(tp);
         if (config.pipeline.use_lines) {
@@ -221,7 +223,8 @@ struct System::Impl {
         if (loop && r.estimate.has_pose) {
           const double cl = threadCpuMs();
           if (r.estimate.keyframe && r.estimate.status == TrackingStatus::kTracking)
-            loop->queueKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points, item->obs.lines);
+            loop->queueKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points, item->obs.lines,
+                                &item->corners);
           loop->setExtrinsics(r.estimate.T_B_R * config.cam0.T_B_C);
           if (loop->hasQueued())
             loop->updateWindow(estimator.windowPoses(), estimator.pointLandmarks(), estimator.windowLines());

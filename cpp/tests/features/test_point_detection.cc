@@ -92,6 +92,33 @@ TEST(PointDetection, FreeRegionSearchEqualsTheWholeImageSearch) {
   for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i], want[i]) << i;
 }
 
+TEST(PointDetection, FirstRoundHandsOnTheWholeImagesCorners) {
+  const cv::Mat img = texture(3);
+  PointDetectorParams p;
+  const std::vector<cv::Point2f> existing{{100.f, 100.f}, {300.f, 200.f}};
+  cv::Mat mask = detectionMask(img.size(), existing, p.min_distance_px, p.border_px, nullptr);
+  FastCorners first;
+  const auto pts = detectCorners(img, &mask, 120, p, &first);
+  std::vector<cv::KeyPoint> plain;
+  cv::FAST(img, plain, p.fast_threshold, true);
+  EXPECT_EQ(first.threshold, p.fast_threshold);
+  ASSERT_EQ(first.keypoints.size(), plain.size());
+  for (std::size_t i = 0; i < plain.size(); ++i) {
+    EXPECT_EQ(first.keypoints[i].pt, plain[i].pt) << i;
+    EXPECT_EQ(first.keypoints[i].response, plain[i].response) << i;
+  }
+  // Handing them on changes nothing of the detection.
+  cv::Mat mask2 = detectionMask(img.size(), existing, p.min_distance_px, p.border_px, nullptr);
+  EXPECT_EQ(pts, detectCorners(img, &mask2, 120, p));
+  // Shi-Tomasi hands on nothing.
+  p.detector = "shi_tomasi";
+  FastCorners none;
+  cv::Mat mask3 = detectionMask(img.size(), existing, p.min_distance_px, p.border_px, nullptr);
+  detectCorners(img, &mask3, 120, p, &none);
+  EXPECT_LT(none.threshold, 0);
+  EXPECT_TRUE(none.keypoints.empty());
+}
+
 TEST(PointDetection, CrowdedTracksAreFlagged) {
   std::vector<unsigned char> keep;
   const std::vector<cv::Point2f> pts{{100.f, 100.f}, {110.f, 100.f}, {200.f, 100.f}, {100.f, 125.f}};

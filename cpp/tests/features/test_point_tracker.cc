@@ -462,6 +462,29 @@ TEST(PointTracker, UsageAndConfigErrors) {
   EXPECT_THROW(PointTracker(bad, *cam, nullptr, Pose()), ConfigError);
 }
 
+TEST(PointTracker, HandsOnReplenishmentsCornersOfTheRawImageOnce) {
+  const auto cam = pinhole(640, 480);
+  const cv::Mat img = texturedImage(640, 480, 9);
+  for (const bool clahe : {false, true}) {
+    PointTrackerOptions opt;
+    opt.clahe = clahe;
+    PointTracker tracker(opt, *cam, nullptr, Pose());
+    std::vector<PointObservation> obs;
+    tracker.track(1, img, cv::Mat(), &obs);
+    const FastCorners got = tracker.takeFastCorners();
+    if (clahe) {  // found on the CLAHE copy: not the left image's
+      EXPECT_LT(got.threshold, 0);
+      continue;
+    }
+    std::vector<cv::KeyPoint> plain;
+    cv::FAST(img, plain, opt.fast_threshold, true);
+    EXPECT_EQ(got.threshold, opt.fast_threshold);
+    ASSERT_EQ(got.keypoints.size(), plain.size());
+    for (std::size_t i = 0; i < plain.size(); ++i) EXPECT_EQ(got.keypoints[i].pt, plain[i].pt) << i;
+    EXPECT_LT(tracker.takeFastCorners().threshold, 0) << "taken once";
+  }
+}
+
 TEST(PointTracker, IdsAreStableAndNeverReused) {
   const auto cam = pinhole(640, 480);
   const cv::Mat img0 = texturedImage(640, 480, 5);

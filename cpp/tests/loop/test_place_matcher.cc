@@ -323,6 +323,34 @@ TEST(PlaceMatcher, DescribesTrackedCornersWithStereoDepthAndMoreCorners) {
   for (const Vec3& p_C : f.p_C) EXPECT_NEAR((T_W_C * p_C).y(), scene.wall_y, 0.02 * scene.wall_y);
 }
 
+TEST(PlaceMatcher, CornersFoundByTheTrackerGiveTheSameDescription) {
+  const test::WallScene scene;
+  const Pose T_W_C = scene.cameraAt(Vec3(0.3, 0.0, 1.2), 0.1);
+  const cv::Mat image = scene.render(T_W_C);
+  const std::vector<PointObservation> tracked = scene.trackedCorners(image, T_W_C, 120);
+  PlaceDescription d;
+  d.corners = 300;
+  // Replenishment's first FAST round on the whole image, at the place description's threshold.
+  PointDetectorParams p;
+  p.fast_threshold = d.fast_threshold;
+  cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(255));
+  FastCorners found;
+  detectCorners(image, &mask, 50, p, &found);
+  ASSERT_EQ(found.threshold, d.fast_threshold);
+  ASSERT_GT(found.keypoints.size(), 300u) << "the quota must not be met before the corners matter";
+  const PlaceFeatures own = describePlace(image, *scene.camera, tracked, scene.T_C1_C0, d);
+  const PlaceFeatures given = describePlace(image, *scene.camera, tracked, scene.T_C1_C0, d, &found);
+  ASSERT_EQ(given.uv.size(), own.uv.size());
+  for (std::size_t i = 0; i < own.uv.size(); ++i) EXPECT_EQ(given.uv[i], own.uv[i]) << i;
+  EXPECT_EQ(cv::norm(given.descriptors_2d, own.descriptors_2d, cv::NORM_HAMMING), 0.0);
+  // Corners of another threshold are not the description's: it searches again.
+  found.threshold = d.fast_threshold + 5;
+  found.keypoints.resize(10);
+  const PlaceFeatures other = describePlace(image, *scene.camera, tracked, scene.T_C1_C0, d, &found);
+  ASSERT_EQ(other.uv.size(), own.uv.size());
+  EXPECT_EQ(cv::norm(other.descriptors_2d, own.descriptors_2d, cv::NORM_HAMMING), 0.0);
+}
+
 TEST(PlaceMatcher, MatchesTwoViewsOfTheSamePlace) {
   const test::WallScene scene;
   const Pose T_W_Cold = scene.cameraAt(Vec3(0.0, 0.0, 1.2), 0.0);

@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -15,6 +16,7 @@
 #include "linnet/core/frame_observations.h"
 #include "linnet/core/pose.h"
 #include "linnet/core/types.h"
+#include "linnet/features/point_detection.h"
 
 namespace cv {
 class CLAHE;
@@ -194,6 +196,9 @@ class PointTracker {
 
   const PointTrackerStats& lastStats() const { return stats_; }
   const PointTrackerOptions& options() const { return opt_; }
+  /// The last track() call's left image's FAST corners from replenishment's first round (threshold < 0 when it ran
+  /// none, or ran on a CLAHE copy); moved out, so a second call returns none.
+  FastCorners takeFastCorners() { return std::exchange(fast_corners_, FastCorners{}); }
   std::size_t numTracks() const { return tracks_.size(); }
 
  private:
@@ -241,6 +246,7 @@ class PointTracker {
   std::vector<cv::Mat> pyr_prev_, pyr_cur_, pyr_right_, pyr_left_stereo_;
   std::optional<Mat3> R_pred_;
   PointTrackerStats stats_;
+  FastCorners fast_corners_;        // see takeFastCorners()
   bool stereo_clahe_on_ = true;     // adaptive stereo CLAHE: current state (starts on)
   int frames_since_probe_ = 0;      // stereo frames with CLAHE on since the last raw try
 };

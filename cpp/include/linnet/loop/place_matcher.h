@@ -16,6 +16,7 @@
 #include "linnet/core/map_line.h"
 #include "linnet/core/pose.h"
 #include "linnet/features/line_lbd.h"
+#include "linnet/features/point_detection.h"
 #include "linnet/features/line_types.h"
 
 namespace linnet {
@@ -49,9 +50,10 @@ struct PlaceDescription {
 
 /// Describes a keyframe: the tracked corners (`points`, cam0 pixels px0), triangulated where matched in cam1
 /// (T_C1_C0: cam0 -> cam1), and the strongest FAST corners of `left`. Corners too close to the border for the patch
-/// are left out.
+/// are left out. `found` (may be null): the FAST corners of `left` already found, used instead of a new search when
+/// their threshold is options.fast_threshold (the same corners).
 PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const std::vector<PointObservation>& points,
-                            const Pose& T_C1_C0, const PlaceDescription& options);
+                            const Pose& T_C1_C0, const PlaceDescription& options, const FastCorners* found = nullptr);
 
 struct PlaceMatchOptions {
   int max_hamming = 64;      // bits
