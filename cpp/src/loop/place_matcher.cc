@@ -286,25 +286,46 @@ OneWay solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMa
   cv::Mat rvec, tvec;
   std::vector<int> inliers;
   const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
+  // Hypotheses from four points by AP3P (Ke & Roumeliotis, CVPR 2017), the inliers' pose then by EPnP (OpenCV's
+  // choice after a P3P-family RANSAC) and refined below. Five-point EPnP hypotheses cost several times as much (a
+  // 12 x 12 SVD each) for the same loops: a failing candidate runs all 200 of them.
   const bool solved = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200,
                                          static_cast<float>(options.ransac_px / options.focal_px), 0.99, inliers,
-                                         cv::SOLVEPNP_EPNP);
+                                         cv::SOLVEPNP_AP3P);
   out.inliers = static_cast<int>(inliers.size());
   if (!solved || out.inliers < options.min_inliers) return result;
   std::vector<cv::Point3d>& obj_in = result.object;
   std::vector<cv::Point2d>& img_in = result.image;
-  for (int k : inliers) {
-    obj_in.push_back(object[static_cast<std::size_t>(k)]);
-    img_in.push_back(image[static_cast<std::size_t>(k)]);
-  }
-  cv::solvePnP(obj_in, img_in, K, cv::noArray(), rvec, tvec, true, cv::SOLVEPNP_ITERATIVE);
-  cv::Mat Rcv;
-  cv::Rodrigues(rvec, Rcv);
+  const auto refine = [&](const std::vector<int>& set, Mat3* R, Vec3* t) {
+    obj_in.clear();
+    img_in.clear();
+    for (int k : set) {
+      obj_in.push_back(object[static_cast<std::size_t>(k)]);
+      img_in.push_back(image[static_cast<std::size_t>(k)]);
+    }
+    cv::solvePnP(obj_in, img_in, K, cv::noArray(), rvec, tvec, true, cv::SOLVEPNP_ITERATIVE);
+    cv::Mat Rcv;
+    cv::Rodrigues(rvec, Rcv);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) (*R)(r, c) = Rcv.at<double>(r, c);
+    *t = Vec3(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+    return R->allFinite() && t->allFinite();
+  };
   Mat3 R;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) R(r, c) = Rcv.at<double>(r, c);
-  const Vec3 t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
-  if (!R.allFinite() || !t.allFinite()) return result;
+  Vec3 t;
+  if (!refine(inliers, &R, &t)) return result;
+  // The inliers are those of the refined pose: RANSAC's are those of its best minimal-set hypothesis, a noisier pose
+  // (from four points) that leaves some good matches just outside the threshold. Refined once more if they changed.
+  std::vector<int> agreeing;
+  const double gate = options.ransac_px / options.focal_px;
+  for (std::size_t k = 0; k < object.size(); ++k) {
+    const Vec3 p = R * Vec3(object[k].x, object[k].y, object[k].z) + t;
+    if (p.z() > 0.0 && (p.head<2>() / p.z() - Vec2(image[k].x, image[k].y)).norm() <= gate)
+      agreeing.push_back(static_cast<int>(k));
+  }
+  if (static_cast<int>(agreeing.size()) < options.min_inliers) return result;
+  if (agreeing != inliers && !refine(agreeing, &R, &t)) return result;
+  out.inliers = static_cast<int>(agreeing.size());
   if (!pnpCovariance(obj_in, img_in, R, t, &out.covariance)) return result;
   out.T_Cold_Cnew = Pose(R, t);  // x_b = R x_a + t: T_Cb_Ca
   out.ok = true;
