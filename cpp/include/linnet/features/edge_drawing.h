@@ -6,7 +6,7 @@
 // EDLines (Akinlar & Topal, "EDLines: a real-time line segment detector with a false detection control", PRL 2011)
 // cuts every chain into straight pieces by least-squares fitting: a piece starts where min_line_px consecutive
 // pixels fit a line within fit_error_px and grows while the next pixel stays within that distance.
-// Smoothing and gradient use OpenCV's vectorised filters; the walk touches only the edge pixels.
+// Smoothing uses OpenCV's vectorised filter, the gradient one vectorised pass; the walk touches only the edge pixels.
 #pragma once
 
 #include <cstdint>
@@ -36,6 +36,8 @@ class EdgeDrawing {
 
   /// The edge chains of the last detect() (pixel coordinates, in walking order), for tests and debugging.
   const std::vector<std::vector<cv::Point>>& chains() const { return chains_; }
+  /// The pixel words of the last detect() before linking (see px_; kEdgeBit set on the linked pixels), for tests.
+  const cv::Mat& pixelWords() const { return px_; }
 
  private:
   void gradient(const cv::Mat& gray);
@@ -44,7 +46,7 @@ class EdgeDrawing {
   void fitLines(const std::vector<cv::Point>& chain, std::vector<cv::Vec4f>* lines) const;
 
   EdgeDrawingOptions options_;
-  cv::Mat smooth_, gx_, gy_;
+  cv::Mat smooth_;
   // CV_16U, one word per pixel so that a step of the walk reads one array: bits 0-11 |gx| + |gy| (at most 2040; 0
   // below gradient_threshold and on the 1-pixel border), kDirBit where the edge runs vertically (|gx| >= |gy|),
   // kEdgeBit once the pixel is linked into a chain.
