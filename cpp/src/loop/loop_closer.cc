@@ -41,9 +41,9 @@ bool LoopCloser::addKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left
 
 void LoopCloser::queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left,
                                const std::vector<PointObservation>& points, const std::vector<LineObservation>& lines,
-                               const FastCorners* corners) {
+                               const FastCorners* corners, const std::vector<LbdDescriptor>* line_desc) {
   Queued q{t, T_W_B, describePlace(left, cam0_, points, T_C1_C0_, placeDescription(options_), corners), {}, {}};
-  if (options_.use_lines) describePlaceLines(left, lines, LbdOptions{}, &q.place);
+  if (options_.use_lines) describePlaceLines(left, lines, LbdOptions{}, &q.place, line_desc);
   queued_.push_back(std::move(q));
 }
 

@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include <Eigen/Cholesky>
 
+#include "linnet/core/error.h"
 #include "linnet/geometry/projection.h"
 #include "linnet/loop/place_matcher.h"
 #include "place_match_detail.h"
@@ -13,12 +15,17 @@
 namespace linnet {
 
 void describePlaceLines(const cv::Mat& left, const std::vector<LineObservation>& lines, const LbdOptions& lbd,
-                        PlaceFeatures* f) {
+                        PlaceFeatures* f, const std::vector<LbdDescriptor>* given) {
   if (left.empty()) return;
-  for (const LineObservation& o : lines) {
+  if (given != nullptr && given->size() != lines.size())
+    throw UsageError("describePlaceLines: " + std::to_string(given->size()) + " descriptors given for " +
+                     std::to_string(lines.size()) + " lines");
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    const LineObservation& o = lines[i];
     f->line_ids.push_back(o.id);
     f->line_uv.push_back({o.s0, o.e0});
-    f->line_desc.push_back(binarizeLbd(computeLbdFloat(left, lbd, LineSegment{o.ps0, o.pe0})));
+    f->line_desc.push_back(given != nullptr ? (*given)[i]
+                                            : binarizeLbd(computeLbdFloat(left, lbd, LineSegment{o.ps0, o.pe0})));
     const Vec3 none = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
     f->line_p_C.push_back({none, none});
   }

@@ -1,5 +1,6 @@
 #include "linnet/pipeline/system.h"
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <deque>
@@ -36,6 +37,7 @@ struct ObservationItem {
   FrameObservations obs;
   cv::Mat left;  // for the loop closer's keyframe descriptors (only when loop closure is on)
   FastCorners corners;  // left's FAST corners from the point tracker's replenishment, if it searched (likewise)
+  std::vector<LbdDescriptor> line_desc;  // the line tracker's descriptors of obs.lines (likewise; empty: none)
   double frontend_ms = 0.0;
   double point_cpu_ms = 0.0;
   double line_cpu_ms = 0.0;
@@ -139,6 +141,21 @@ struct System::Impl {
     return true;
   }
 
+  // The line tracker's left descriptors of its delivered lines (both sorted by id); empty if one is missing.
+  std::vector<LbdDescriptor> trackerDescriptors(const std::vector<LineObservation>& obs) const {
+    std::vector<LbdDescriptor> out;
+    out.reserve(obs.size());
+    const std::vector<LineTracker::Track>& tracks = lines.tracks();
+    auto it = tracks.begin();
+    for (const LineObservation& o : obs) {
+      it = std::lower_bound(it, tracks.end(), o.id,
+                            [](const LineTracker::Track& t, std::int64_t id) { return t.id < id; });
+      if (it == tracks.end() || it->id != o.id) return {};
+      out.push_back(it->desc);
+    }
+    return out;
+  }
+
   void frontendLoop() {
     try {
       while (std::optional<FrameInput> in = frames.pop()) {
@@ -156,6 +173,7 @@ struct System::Impl {
           const auto tl = Clock::now();
           const double cl = threadCpuMs();
           lines.track(in->t, in->left, in->right, &item.obs.lines);
+          if (loop) item.line_desc = trackerDescriptors(item.obs.lines);
           item.line_cpu_ms = threadCpuMs() - cl;
           item.obs.line_ms = msSince(tl);
         };
@@ -224,7 +242,9 @@ struct System::Impl {
           const double cl = threadCpuMs();
           if (r.estimate.keyframe && r.estimate.status == TrackingStatus::kTracking)
             loop->queueKeyframe(r.estimate.t, r.estimate.T_W_B, item->left, item->obs.points, item->obs.lines,
-                                &item->corners);
+                                &item->corners, item->line_desc.size() == item->obs.lines.size()
+                                                    ? &item->line_desc
+                                                    : nullptr);
           loop->setExtrinsics(r.estimate.T_B_R * config.cam0.T_B_C);
           if (loop->hasQueued())
             loop->updateWindow(estimator.windowPoses(), estimator.pointLandmarks(), estimator.windowLines());

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include "linnet/core/error.h"
 #include "linnet/loop/place_matcher.h"
 #include "loop_test_scene.h"
 
@@ -281,6 +282,31 @@ TEST(PlaceMatcher, LinesCloseALoopThatTooFewCornersCannot) {
   // A prior far off (0.5 m) finds no loop.
   o.prior_T_Cold_Cnew = Pose(Quat::Identity(), Vec3(0.5, 0.0, 0.0)) * T_Cold_Cnew;
   EXPECT_FALSE(matchPlaces(old_kf, new_kf, o).ok);
+}
+
+TEST(PlaceMatcher, PlaceLinesTakeGivenDescriptorsOrComputeThem) {
+  const test::WallScene scene;
+  const cv::Mat image = scene.render(scene.cameraAt(Vec3(0.3, 0.0, 1.2), 0.1));
+  std::vector<LineObservation> lines(3);
+  for (int i = 0; i < 3; ++i) {
+    lines[static_cast<std::size_t>(i)].id = 10 + i;
+    lines[static_cast<std::size_t>(i)].ps0 = Vec2(100.0 + 60 * i, 120.0);
+    lines[static_cast<std::size_t>(i)].pe0 = Vec2(140.0 + 60 * i, 300.0);
+  }
+  PlaceFeatures own, given;
+  describePlaceLines(image, lines, LbdOptions{}, &own);
+  ASSERT_EQ(own.line_desc.size(), 3u);
+  for (const LineObservation& o : lines)
+    EXPECT_EQ(own.line_desc[static_cast<std::size_t>(o.id - 10)],
+              binarizeLbd(computeLbdFloat(image, LbdOptions{}, LineSegment{o.ps0, o.pe0})));
+  std::vector<LbdDescriptor> tracker(3);
+  for (std::size_t i = 0; i < 3; ++i) tracker[i].fill(0x0101010101010101ULL * (i + 1));
+  describePlaceLines(image, lines, LbdOptions{}, &given, &tracker);
+  EXPECT_EQ(given.line_desc, tracker);
+  EXPECT_EQ(given.line_ids, own.line_ids);
+  tracker.pop_back();
+  PlaceFeatures wrong;
+  EXPECT_THROW(describePlaceLines(image, lines, LbdOptions{}, &wrong, &tracker), UsageError);
 }
 
 TEST(PlaceMatcher, PlaceLinesTakeTheWindowLandmarksInTheCameraFrame) {

@@ -62,9 +62,11 @@ class LoopCloser {
   /// once it has left the odometry's window, at its final pose and with its corners at the window's final landmark
   /// positions (multi-view, better than one stereo pair), as VINS-Mono does with its window's old keyframes.
   /// Its tracked cam0 lines (`lines`) are described too when options.use_lines. `corners` (may be null): the left
-  /// image's FAST corners if the front-end found them already (describePlace).
+  /// image's FAST corners if the front-end found them already (describePlace); `line_desc` (may be null): the lines'
+  /// descriptors from the line tracker, parallel to `lines` (describePlaceLines).
   void queueKeyframe(Timestamp t, const Pose& T_W_B, const cv::Mat& left, const std::vector<PointObservation>& points,
-                     const std::vector<LineObservation>& lines = {}, const FastCorners* corners = nullptr);
+                     const std::vector<LineObservation>& lines = {}, const FastCorners* corners = nullptr,
+                     const std::vector<LbdDescriptor>* line_desc = nullptr);
   /// The odometry's window after a frame (oldest first), its triangulated point landmarks (sorted by id) and its line
   /// landmarks (sorted by id, endpoints in W): updates the queued keyframes still in it, and inserts those that have
   /// left it. Returns the loops closed.

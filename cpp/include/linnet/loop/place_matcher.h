@@ -107,9 +107,10 @@ void setPlaceDepths(const std::vector<Vec3>& p_W_tracked, const Pose& T_W_C, Pla
 PlaceMatch matchPlaces(const PlaceFeatures& old_kf, const PlaceFeatures& new_kf, const PlaceMatchOptions& options);
 
 /// Adds the keyframe's tracked cam0 lines to its place description, with LBD descriptors computed on `left` (the 3D
-/// segments unknown until setPlaceLines).
+/// segments unknown until setPlaceLines). `given` (may be null; else parallel to `lines`): their descriptors as the
+/// line tracker computed them on `left`, taken instead.
 void describePlaceLines(const cv::Mat& left, const std::vector<LineObservation>& lines, const LbdOptions& lbd,
-                        PlaceFeatures* f);
+                        PlaceFeatures* f, const std::vector<LbdDescriptor>* given = nullptr);
 
 /// Sets line_p_C from the odometry's line landmarks (`window_lines`, sorted by id; endpoints in W) seen from T_W_C:
 /// each tracked line with a landmark whose both endpoints are in front of the camera.
