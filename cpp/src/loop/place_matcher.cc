@@ -268,6 +268,12 @@ bool refineTwoWay(const std::vector<cv::Point3d>& obj_a, const std::vector<cv::P
   return true;
 }
 
+// A 3D point in a camera's frame agrees with its corner (normalised coordinates) when it is in front and projects
+// within `gate` of it.
+bool projectsWithin(const Vec3& p_C, const cv::Point2d& uv, double gate) {
+  return p_C.z() > 0.0 && (p_C.head<2>() / p_C.z() - Vec2(uv.x, uv.y)).norm() <= gate;
+}
+
 // 3D points of `a` (its camera frame) matched to 2D corners of `b`; on success T_Cb_Ca.
 // With a prior T_Cb_Ca the pairs come from guided matching instead of descriptors alone.
 OneWay solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMatchOptions& options,
@@ -318,11 +324,9 @@ OneWay solveOneWay(const PlaceFeatures& a, const PlaceFeatures& b, const PlaceMa
   // (from four points) that leaves some good matches just outside the threshold. Refined once more if they changed.
   std::vector<int> agreeing;
   const double gate = options.ransac_px / options.focal_px;
-  for (std::size_t k = 0; k < object.size(); ++k) {
-    const Vec3 p = R * Vec3(object[k].x, object[k].y, object[k].z) + t;
-    if (p.z() > 0.0 && (p.head<2>() / p.z() - Vec2(image[k].x, image[k].y)).norm() <= gate)
+  for (std::size_t k = 0; k < object.size(); ++k)
+    if (projectsWithin(R * Vec3(object[k].x, object[k].y, object[k].z) + t, image[k], gate))
       agreeing.push_back(static_cast<int>(k));
-  }
   if (static_cast<int>(agreeing.size()) < options.min_inliers) return result;
   if (agreeing != inliers && !refine(agreeing, &R, &t)) return result;
   out.inliers = static_cast<int>(agreeing.size());
@@ -348,8 +352,7 @@ void refineOnBothKeyframes(const PlaceFeatures& a, const PlaceFeatures& b, const
   std::vector<cv::Point2d> img_a;
   for (std::size_t i = 0; i < object.size(); ++i) {
     const Vec3 p = R.transpose() * (Vec3(object[i].x, object[i].y, object[i].z) - t);  // in a
-    if (!(p.z() > 0.0)) continue;
-    if ((p.head<2>() / p.z() - Vec2(image[i].x, image[i].y)).norm() > gate) continue;
+    if (!projectsWithin(p, image[i], gate)) continue;
     obj_b.push_back(object[i]);
     img_a.push_back(image[i]);
   }

@@ -20,9 +20,6 @@ struct PointDetectorParams {
   int border_px = 8;               // corners closer to the image border are ignored, pixels
 };
 
-/// Occupancy mask for detection: 255 where a new corner may go, 0 inside a disc of radius min_distance_px around each
-/// existing point and in the border. `points` are visited in the given order; when `keep` is non-null, a point whose
-/// centre is already covered by an earlier point's disc gets keep[i] = 0 (crowded), otherwise 1 and its disc is drawn.
 /// The FAST corners (9-16, with non-maximum suppression) of a whole image at one threshold, as cv::FAST returns them:
 /// what replenishment found in its first round, handed on so that a later user of the same image and threshold (the
 /// loop closer's place description) need not search again. threshold < 0: none.
@@ -31,6 +28,9 @@ struct FastCorners {
   std::vector<cv::KeyPoint> keypoints;
 };
 
+/// Occupancy mask for detection: 255 where a new corner may go, 0 inside a disc of radius min_distance_px around each
+/// existing point and in the border. `points` are visited in the given order; when `keep` is non-null, a point whose
+/// centre is already covered by an earlier point's disc gets keep[i] = 0 (crowded), otherwise 1 and its disc is drawn.
 cv::Mat detectionMask(const cv::Size& size, const std::vector<cv::Point2f>& points, double min_distance_px,
                       int border_px, std::vector<unsigned char>* keep);
 
