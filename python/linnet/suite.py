@@ -64,6 +64,9 @@ class RunSpec:
     out: str
     timeout_s: float
     thread_env: tuple = ()    # (name, value or None) of THREAD_ENV as the suite was started
+    sample: int = 0           # index among the runs of this system on this replay (--samples)
+    settings: tuple = ()      # (key, value) config settings of this sample: "--set key=value" for the built-in
+                              # linnet, "{key}" with the key's last part (e.g. {klt_epsilon}) in a command template
 
 
 @dataclass
@@ -107,15 +110,20 @@ def driver_thread_env() -> tuple:
     return tuple((name, os.environ.get(name)) for name in THREAD_ENV)
 
 
-def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float, thread_env: tuple = ()) -> dict:
+def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float, thread_env: tuple = (),
+                settings: tuple = ()) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     tum = out / "trajectory.tum"
     if tum.exists():
         tum.unlink()
     if cmd is None:
         argv = [sys.executable, "-m", "linnet.cli", "run", str(dataset), "--out", str(out), "--quiet"]
+        for key, value in settings:
+            argv += ["--set", f"{key}={value}"]
     else:
-        text = cmd.format(dataset=shlex.quote(str(dataset)), out=shlex.quote(str(out)), tum=shlex.quote(str(tum)))
+        fields = {key.rsplit(".", 1)[-1]: shlex.quote(str(value)) for key, value in settings}
+        text = cmd.format(dataset=shlex.quote(str(dataset)), out=shlex.quote(str(out)), tum=shlex.quote(str(tum)),
+                          **fields)
         argv = ["/bin/sh", "-c", text]
     env = dict(os.environ)
     for name, value in thread_env:
@@ -157,12 +165,13 @@ def run_job(spec: RunSpec, replay: dict) -> dict:
     dataset = Path(replay["dataset"])
     sim = replay["summary"]
     out = Path(spec.out)
-    res = _run_system(spec.command, dataset, out, spec.timeout_s, spec.thread_env)
+    res = _run_system(spec.command, dataset, out, spec.timeout_s, spec.thread_env, spec.settings)
     ape, eval_err = _evaluate(out / "trajectory.tum", dataset / "mav0" / "state_groundtruth_estimate0" / "data.csv")
     summ = res.get("summary", {})
     seq_dur = sim["duration_s"]
     return {
-        "sequence": spec.replay.name, "scene": spec.replay.scene, "system": spec.system, "ape_rmse_m": ape,
+        "sequence": spec.replay.name, "scene": spec.replay.scene, "system": spec.system, "sample": spec.sample,
+        "settings": dict(spec.settings), "ape_rmse_m": ape,
         "real_time_factor": float(summ.get("real_time_factor", res["wall_s"] / max(seq_dur, 1e-9))),
         "init_time_s": summ.get("initialisation_time_s"),
         "failures": summ.get("reinitialisations", 0 if res["returncode"] == 0 else None),
@@ -171,6 +180,23 @@ def run_job(spec: RunSpec, replay: dict) -> dict:
         "duration_s": seq_dur, "dataset": str(dataset), "out": str(out),
         "realism": dict(spec.replay.settings),
     }
+
+
+#: The config key that --samples varies: KLT's stop. A change of it that no one would notice (1 %) takes a run down
+#: another floating-point path, and a single replay's APE can then move by up to 2x (README, Results): one run is one
+#: sample of a spread.
+SAMPLE_KEY = "points.klt_epsilon"
+
+
+def sample_values(n: int, base: float) -> list:
+    """n values of SAMPLE_KEY around its default `base`: base x (1 + d), d = 0, -1 %, +1 %, -2 %, +2 %, ..."""
+    if n < 1:
+        raise ValueError(f"samples must be >= 1, got {n}")
+    out = []
+    for k in range(n):
+        d = 0.01 * ((k + 1) // 2) * (-1 if k % 2 else 1)
+        out.append(float(f"{base * (1.0 + d):.6g}"))
+    return out
 
 
 # ------------------------------------------------------------------------------------------------------- executors
@@ -256,8 +282,49 @@ def markdown_table(rows: list) -> str:
         fail = r["failures"] if r["failures"] is not None else "—"
         if r["error"]:
             fail = f"{fail} ({r['error']})"
-        lines.append(f"| {r['sequence']} | {r['scene']} | {r['system']} | {ape} | {r['real_time_factor']:.2f} | "
+        system = r["system"] + "".join(f" ({k}={v})" for k, v in (r.get("settings") or {}).items())
+        lines.append(f"| {r['sequence']} | {r['scene']} | {system} | {ape} | {r['real_time_factor']:.2f} | "
                      f"{init} | {fail} |")
+    return "\n".join(lines)
+
+
+def sample_summary(rows: list) -> list:
+    """One dict per sequence / scene / system (first-seen order) over its samples: count, APE mean, standard deviation
+    (of the samples, n - 1; None for fewer than 2), min, max (over the runs with an APE), mean real-time factor and
+    the failures summed (None if any run's count is unknown)."""
+    import statistics
+
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault((r["sequence"], r["scene"], r["system"]), []).append(r)
+    out = []
+    for (sequence, scene, system), rs in groups.items():
+        apes = [r["ape_rmse_m"] for r in rs if r["ape_rmse_m"] is not None]
+        fails = [r["failures"] for r in rs]
+        out.append({
+            "sequence": sequence, "scene": scene, "system": system, "runs": len(rs), "evaluated": len(apes),
+            "ape_mean_m": statistics.fmean(apes) if apes else None,
+            "ape_sd_m": statistics.stdev(apes) if len(apes) >= 2 else None,
+            "ape_min_m": min(apes) if apes else None, "ape_max_m": max(apes) if apes else None,
+            "real_time_factor_mean": statistics.fmean(r["real_time_factor"] for r in rs),
+            "failures": None if any(f is None for f in fails) else sum(fails),
+        })
+    return out
+
+
+def summary_table(summary: list) -> str:
+    """sample_summary() as markdown."""
+    def m(x):
+        return f"{x:.4f}" if x is not None else "—"
+
+    lines = ["| sequence | scene | system | runs | APE mean [m] | sd [m] | min [m] | max [m] | real-time factor | "
+             "failures |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for g in summary:
+        runs = f"{g['evaluated']} of {g['runs']}" if g["evaluated"] != g["runs"] else str(g["runs"])
+        fails = g["failures"] if g["failures"] is not None else "—"
+        lines.append(f"| {g['sequence']} | {g['scene']} | {g['system']} | {runs} | {m(g['ape_mean_m'])} | "
+                     f"{m(g['ape_sd_m'])} | {m(g['ape_min_m'])} | {m(g['ape_max_m'])} | "
+                     f"{g['real_time_factor_mean']:.3f} | {fails} |")
     return "\n".join(lines)
 
 

@@ -89,3 +89,65 @@ def test_bench_suite_names_a_bad_trajectory_and_leaves_no_half_replay(tmp_path):
              "--cache", str(tmp_path / "cache"), "--runs", str(tmp_path / "runs"))
     assert r.returncode == 1 and "bad.txt" in r.stderr.splitlines()[-1], r.stderr
     assert not any((tmp_path / "cache").iterdir())
+
+
+def test_sample_values_step_the_klt_stop_by_one_percent_each_side():
+    from linnet.suite import sample_values
+
+    assert sample_values(1, 0.01) == [0.01]
+    assert sample_values(5, 0.01) == [0.01, 0.0099, 0.0101, 0.0098, 0.0102]
+    with pytest.raises(ValueError):
+        sample_values(0, 0.01)
+
+
+def test_sample_summary_gives_each_systems_mean_and_spread():
+    from linnet.suite import sample_summary, summary_table
+
+    def row(system, ape, failures=0):
+        return {"sequence": "a", "scene": "room", "system": system, "ape_rmse_m": ape, "real_time_factor": 0.2,
+                "failures": failures}
+
+    summary = sample_summary([row("x", 0.01), row("y", 0.05), row("x", 0.02), row("x", None, None), row("x", 0.03)])
+    assert [g["system"] for g in summary] == ["x", "y"]
+    x, y = summary
+    assert x["runs"] == 4 and x["evaluated"] == 3 and x["failures"] is None
+    assert x["ape_mean_m"] == pytest.approx(0.02) and x["ape_sd_m"] == pytest.approx(0.01)
+    assert (x["ape_min_m"], x["ape_max_m"]) == (0.01, 0.03)
+    assert y["runs"] == 1 and y["ape_sd_m"] is None and y["failures"] == 0
+    text = summary_table(summary)
+    assert "| a | room | x | 3 of 4 | 0.0200 | 0.0100 | 0.0100 | 0.0300 | 0.200 | — |" in text
+    assert "| a | room | y | 1 | 0.0500 | — | 0.0500 | 0.0500 | 0.200 | 0 |" in text
+
+
+def test_build_suite_samples_the_built_in_system_and_templates_that_ask_for_it(tmp_path, short_loop_tum):
+    from linnet.commands.bench_suite import build_suite
+
+    suite = build_suite(str(short_loop_tum), "room", ("linnet", "t=run {klt_epsilon} {out}", "u=run {out}"), 1.0,
+                        0.0, 0, "easy", tmp_path / "cache", tmp_path / "runs", 60.0, samples=3)
+    by_system = {}
+    for run in suite.runs:
+        by_system.setdefault(run.system, []).append(run)
+    assert [r.settings for r in by_system["linnet"]] == [(("points.klt_epsilon", v),) for v in (0.01, 0.0099, 0.0101)]
+    assert [r.sample for r in by_system["t"]] == [0, 1, 2] and len({r.out for r in by_system["t"]}) == 3
+    assert len(by_system["u"]) == 1 and by_system["u"][0].settings == ()
+    single = build_suite(str(short_loop_tum), "room", ("linnet",), 1.0, 0.0, 0, "easy", tmp_path / "cache",
+                         tmp_path / "runs", 60.0)
+    assert len(single.runs) == 1 and single.runs[0].settings == ()
+
+
+def test_bench_suite_samples_print_the_spread(tmp_path, short_loop_tum):
+    # The stand-in system writes the ground truth and records the KLT stop it was given.
+    oracle = ("oracle=echo {klt_epsilon} > {out}/eps.txt && awk -F, '!/^#/ {{printf \"%.9f %s %s %s %s %s %s %s\\n\", "
+              "$1/1e9, $2, $3, $4, $6, $7, $8, $5}}' {dataset}/mav0/state_groundtruth_estimate0/data.csv > {tum}")
+    r = _run("bench", "suite", "--sequences", str(short_loop_tum), "--scenes", "lowtex", "--duration", "1.5",
+             "--start", "2", "--systems", oracle, "--samples", "2", "--cache", str(tmp_path / "cache"),
+             "--runs", str(tmp_path / "runs"), "--json", str(tmp_path / "rows.json"), "--executor", "serial",
+             "--realism", "easy")
+    assert r.returncode == 0, r.stderr
+    assert "| short | lowtex | oracle | 2 | 0.0000 | 0.0000 | 0.0000 | 0.0000 |" in r.stdout, r.stdout
+    rows = json.loads((tmp_path / "rows.json").read_text())
+    assert [row["sample"] for row in rows] == [0, 1]
+    assert [(tmp_path / "runs" / "short_lowtex" / "oracle" / f"sample{k}" / "eps.txt").read_text().strip()
+            for k in (0, 1)] == ["0.01", "0.0099"]
+    bad = _run("bench", "suite", "--sequences", str(short_loop_tum), "--samples", "0", "--executor", "serial")
+    assert bad.returncode == 2 and "samples" in bad.stderr

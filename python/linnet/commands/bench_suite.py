@@ -8,6 +8,12 @@ Replays are rendered once with the ``--realism`` preset (default ``hard``) and c
 trajectory.tum, where the command must write its TUM trajectory); write literal braces as ``{{`` and ``}}``. If the
 command also writes ``{out}/summary.json`` with Linnet's keys (initialisation_time_s, reinitialisations), those are
 reported. Jobs run on Ray when it is installed (see linnet.suite), serially otherwise.
+
+With ``--samples N`` the built-in linnet runs N times per replay, KLT's stop (points.klt_epsilon) at its default x
+(1 + d), d = 0, -1 %, +1 %, -2 %, ...: a change no one would notice that still moves a single replay's APE by up to
+2x, so that a comparison of two configurations can rest on each replay's mean and spread rather than on one run. A
+command template takes part when it holds ``{klt_epsilon}`` (run once otherwise). A second table then gives, per
+sequence, scene and system, the runs' APE mean, standard deviation, min and max and the mean real-time factor.
 """
 from __future__ import annotations
 
@@ -19,7 +25,8 @@ import click
 from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE
 from linnet.evaluation import InputError as EvalInputError, write_json_file
 from linnet.sim.realism import REALISM_LEVELS, REALISM_PRESETS
-from linnet.suite import ReplaySpec, RunSpec, Suite, driver_thread_env, make_executor, markdown_table, plot_rows
+from linnet.suite import (SAMPLE_KEY, ReplaySpec, RunSpec, Suite, driver_thread_env, make_executor, markdown_table,
+                          plot_rows, sample_summary, sample_values, summary_table)
 
 DEFAULT_SEQUENCES = ("V1_02_medium", "MH_01_easy", "V2_01_easy")
 
@@ -66,8 +73,16 @@ def parse_systems(specs) -> list[tuple[str, str | None]]:
     return systems or [("linnet", None)]
 
 
+def default_sample_base() -> float:
+    """SAMPLE_KEY's default value in the built-in configuration."""
+    from linnet import _linnet
+    from linnet.api import config_value
+
+    return float(config_value(_linnet.Config(), SAMPLE_KEY))
+
+
 def build_suite(sequences: str, scenes: str, systems, duration, start, seed, realism, cache: Path,
-                runs: Path, timeout: float) -> Suite:
+                runs: Path, timeout: float, samples: int = 1) -> Suite:
     from linnet.sim.scene import SCENES
 
     gt_dir = shared_groundtruth_dir()
@@ -78,6 +93,9 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
             raise click.UsageError(f"--scenes: unknown scene '{s}' (known: auto, {', '.join(SCENES)})")
     settings = tuple(sorted(REALISM_PRESETS[realism].items()))
     thread_env = driver_thread_env()
+    if samples < 1:
+        raise click.UsageError(f"--samples must be at least 1, got {samples}")
+    values = sample_values(samples, default_sample_base())
     suite = Suite(cache=str(cache))
     for name, gt_file in seqs:
         for scene in ([default_scene(name)] if scene_list == ["auto"] else scene_list):
@@ -87,8 +105,16 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
             if replay not in suite.replays:
                 suite.replays.append(replay)
             for sys_name, cmd in parse_systems(systems):
-                suite.runs.append(RunSpec(replay, sys_name, cmd, str(runs / f"{name}_{scene}" / sys_name), timeout,
-                                          thread_env))
+                folder = runs / f"{name}_{scene}" / sys_name
+                sampled = cmd is None or "{" + SAMPLE_KEY.rsplit(".", 1)[-1] + "}" in cmd
+                if samples == 1 or not sampled:
+                    run_settings = ((SAMPLE_KEY, values[0]),) if cmd is not None and sampled else ()
+                    suite.runs.append(RunSpec(replay, sys_name, cmd, str(folder), timeout, thread_env, 0,
+                                              run_settings))
+                    continue
+                for k, v in enumerate(values):
+                    suite.runs.append(RunSpec(replay, sys_name, cmd, str(folder / f"sample{k}"), timeout, thread_env,
+                                              k, ((SAMPLE_KEY, v),)))
     return suite
 
 
@@ -115,17 +141,20 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
 @click.option("--ray-address", default=None, metavar="ADDRESS",
               help="Run the jobs on an existing Ray cluster (e.g. 10.0.0.5:6379, or 'auto').")
 @click.option("--timeout", type=float, default=3600.0, show_default=True, help="Seconds per system run.")
+@click.option("--samples", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Runs of the built-in linnet per replay, KLT's stop (points.klt_epsilon) varied by 1 %, 2 %, ...: "
+                   "each replay's APE mean and spread (a command template takes part with {klt_epsilon}).")
 @click.option("--json", "json_out", type=OUTPUT_FILE, help="Write the rows as JSON.")
 @click.option("--report", "report_dir", type=OUTPUT_DIR, default=None,
               help="Write suite.md, suite.json and suite.png (APE and real-time factor per sequence, scene, system).")
 def COMMAND(sequences, scenes, systems, realism, duration, start, seed, cache, runs, executor, ray_address, timeout,
-            json_out, report_dir):
+            samples, json_out, report_dir):
     """Replay EuRoC motions through simulated scenes, run each system, print APE / real-time factor / init / failures."""
     import time
 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    suite = build_suite(sequences, scenes, systems, duration, start, seed, realism, cache, runs, timeout)
+    suite = build_suite(sequences, scenes, systems, duration, start, seed, realism, cache, runs, timeout, samples)
     for folder in (cache, runs, report_dir):
         if folder is not None:
             try:
@@ -159,13 +188,16 @@ def COMMAND(sequences, scenes, systems, realism, duration, start, seed, cache, r
             raise
     wall = time.perf_counter() - t0
     table = markdown_table(rows)
+    summary = sample_summary(rows)
+    if any(g["runs"] > 1 for g in summary):
+        table += "\n\n" + summary_table(summary)
     click.echo(table)
     echo(f"[suite] {total} jobs in {wall:.1f} s wall ({runner.name})")
     try:
         if json_out:
             write_json_file(json_out, rows)
         if report_dir:
-            report = {"realism": realism, "executor": runner.name, "wall_s": wall, "rows": rows}
+            report = {"realism": realism, "executor": runner.name, "wall_s": wall, "rows": rows, "summary": summary}
             write_json_file(report_dir / "suite.json", report)
     except EvalInputError as e:
         raise click.ClickException(str(e)) from None
