@@ -216,7 +216,7 @@ void Marginaliser::addResidual(std::shared_ptr<ceres::CostFunction> cost, ceres:
     key_store_.push_back(keys[k]);
     block_store_.push_back(&it->second);
   }
-  const auto* tangent = dynamic_cast<const TangentJacobians*>(cost.get());
+  const TangentJacobians* tangent = tangent_of_.of(cost.get());
   residuals_.push_back(Residual{std::move(cost), loss, first, keys.size(), tangent});
 }
 

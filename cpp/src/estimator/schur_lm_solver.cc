@@ -109,7 +109,7 @@ void SchurLmSolver::addResidual(const ceres::CostFunction* cost, const ceres::Lo
   Residual r;
   r.cost = cost;
   r.loss = loss;
-  r.tangent = dynamic_cast<const TangentJacobians*>(cost);
+  r.tangent = tangent_of_.of(cost);
   r.rows = cost->num_residuals();
   r.first = static_cast<int>(res_blocks_.size());
   r.count = static_cast<int>(blocks.size());

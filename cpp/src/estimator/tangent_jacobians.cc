@@ -40,4 +40,21 @@ bool evaluateThroughTangent(const TangentJacobians& f, const std::vector<std::in
   return true;
 }
 
+const TangentJacobians* TangentJacobiansCache::of(const ceres::CostFunction* cost) {
+  if (cost == nullptr) return nullptr;
+  const std::type_info& type = typeid(*cost);
+  for (const Entry& e : entries_)
+    if (*e.type == type)
+      return e.is_tangent
+                 ? reinterpret_cast<const TangentJacobians*>(reinterpret_cast<const char*>(cost) + e.offset)
+                 : nullptr;
+  const auto* tangent = dynamic_cast<const TangentJacobians*>(cost);
+  entries_.push_back({&type,
+                      tangent != nullptr
+                          ? reinterpret_cast<const char*>(tangent) - reinterpret_cast<const char*>(cost)
+                          : std::ptrdiff_t{0},
+                      tangent != nullptr});
+  return tangent;
+}
+
 }  // namespace linnet

@@ -14,6 +14,7 @@
 
 #include "linnet/estimator/factors/line_factor.h"
 #include "linnet/estimator/factors/point_factors.h"
+#include "linnet/estimator/factors/zero_velocity_factor.h"
 #include "linnet/estimator/manifolds.h"
 #include "linnet/geometry/plucker.h"
 #include "support/jacobian_check.h"
@@ -513,6 +514,24 @@ TEST(StereoCorrection, SameFramePairFactorAndJacobians) {
       }
     }
   }
+}
+
+TEST(TangentJacobiansCache, GivesWhatTheCrossCastGivesForEachType) {
+  std::mt19937 rng(5);
+  std::vector<std::shared_ptr<ceres::CostFunction>> costs;
+  for (int k = 0; k < 3; ++k) {  // several objects of each type, interleaved
+    const PointCase c = pointCase(rng, cam1());
+    const LineCase l = lineCase(rng, c.T_W_Bi * cam0());
+    auto point = std::make_shared<PointReprojectionFactor>(c.uv_host, c.uv_target, cam0(), cam1(), kFocal);
+    costs.push_back(point);
+    costs.push_back(std::make_shared<LineReprojectionFactor>(l.s, l.e, cam0(), kFocal));
+    costs.push_back(std::make_shared<RigCorrectedFactor>(point, std::vector<int>{0, 1}, c.T_B_R0));
+    costs.push_back(std::make_shared<ZeroVelocityFactor>(0.1));  // not a TangentJacobians
+  }
+  TangentJacobiansCache cache;
+  for (int pass = 0; pass < 2; ++pass)
+    for (const auto& cost : costs) EXPECT_EQ(cache.of(cost.get()), dynamic_cast<const TangentJacobians*>(cost.get()));
+  EXPECT_EQ(cache.of(nullptr), nullptr);
 }
 
 }  // namespace

@@ -145,6 +145,7 @@ class Marginaliser {
   std::vector<Residual> residuals_;
   std::vector<BlockKey> key_store_;  // every residual's keys, in order
   std::vector<Block*> block_store_;  // and their blocks
+  TangentJacobiansCache tangent_of_;  // the residuals' TangentJacobians, looked up once per cost function type
   MarginalisationStats stats_;
 };
 

@@ -148,6 +148,7 @@ class SchurLmSolver {
 
   std::vector<Block> blocks_;
   std::unordered_map<const double*, int> index_;
+  TangentJacobiansCache tangent_of_;  // the residuals' TangentJacobians, looked up once per cost function type
   std::vector<Residual> residuals_;
   std::vector<int> res_blocks_;  // the residuals' blocks, flat
   std::vector<int> res_slots_;   // parallel: the block's index in its residual's landmark's kept list (-1: none)

@@ -7,8 +7,12 @@
 // the Schur solver uses them, Ceres keeps using Evaluate. Both describe the same function.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <typeinfo>
 #include <vector>
+
+#include <ceres/cost_function.h>
 
 namespace linnet {
 
@@ -27,5 +31,22 @@ class TangentJacobians {
 /// residuals: at most 4 rows and 8 blocks (UsageError otherwise); no heap allocation.
 bool evaluateThroughTangent(const TangentJacobians& f, const std::vector<std::int32_t>& block_sizes, int rows,
                             double const* const* parameters, double* residuals, double** jacobians);
+
+/// dynamic_cast<const TangentJacobians*>(cost), remembered per dynamic type. The cast is a cross-cast, which walks
+/// the class hierarchy; a window solve asks it for each of its ~2000 residuals, of a handful of types (about 1 % of a
+/// run's instructions). A base subobject sits at the same offset in every object of one complete type, so the offset
+/// found by the first cast serves the others. One per solve or marginalisation (not thread-safe).
+class TangentJacobiansCache {
+ public:
+  const TangentJacobians* of(const ceres::CostFunction* cost);
+
+ private:
+  struct Entry {
+    const std::type_info* type;
+    std::ptrdiff_t offset;  // of the TangentJacobians subobject from the CostFunction one, bytes
+    bool is_tangent;
+  };
+  std::vector<Entry> entries_;
+};
 
 }  // namespace linnet
