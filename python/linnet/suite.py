@@ -121,7 +121,7 @@ def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float, th
         for key, value in settings:
             argv += ["--set", f"{key}={value}"]
     else:
-        fields = {key.rsplit(".", 1)[-1]: shlex.quote(str(value)) for key, value in settings}
+        fields = {template_field(key): shlex.quote(str(value)) for key, value in settings}
         text = cmd.format(dataset=shlex.quote(str(dataset)), out=shlex.quote(str(out)), tum=shlex.quote(str(tum)),
                           **fields)
         argv = ["/bin/sh", "-c", text]
@@ -186,6 +186,11 @@ def run_job(spec: RunSpec, replay: dict) -> dict:
 #: another floating-point path, and a single replay's APE can then move by up to 2x (README, Results): one run is one
 #: sample of a spread.
 SAMPLE_KEY = "points.klt_epsilon"
+
+
+def template_field(key: str) -> str:
+    """The command-template field of a config key: its last part (points.klt_epsilon -> klt_epsilon)."""
+    return key.rsplit(".", 1)[-1]
 
 
 def sample_values(n: int, base: float) -> list:

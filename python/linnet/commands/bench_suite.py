@@ -26,7 +26,7 @@ from linnet.commands.params import OUTPUT_DIR, OUTPUT_FILE
 from linnet.evaluation import InputError as EvalInputError, write_json_file
 from linnet.sim.realism import REALISM_LEVELS, REALISM_PRESETS
 from linnet.suite import (SAMPLE_KEY, ReplaySpec, RunSpec, Suite, driver_thread_env, make_executor, markdown_table,
-                          plot_rows, sample_summary, sample_values, summary_table)
+                          plot_rows, sample_summary, sample_values, summary_table, template_field)
 
 DEFAULT_SEQUENCES = ("V1_02_medium", "MH_01_easy", "V2_01_easy")
 
@@ -93,8 +93,6 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
             raise click.UsageError(f"--scenes: unknown scene '{s}' (known: auto, {', '.join(SCENES)})")
     settings = tuple(sorted(REALISM_PRESETS[realism].items()))
     thread_env = driver_thread_env()
-    if samples < 1:
-        raise click.UsageError(f"--samples must be at least 1, got {samples}")
     values = sample_values(samples, default_sample_base())
     suite = Suite(cache=str(cache))
     for name, gt_file in seqs:
@@ -106,7 +104,7 @@ def build_suite(sequences: str, scenes: str, systems, duration, start, seed, rea
                 suite.replays.append(replay)
             for sys_name, cmd in parse_systems(systems):
                 folder = runs / f"{name}_{scene}" / sys_name
-                sampled = cmd is None or "{" + SAMPLE_KEY.rsplit(".", 1)[-1] + "}" in cmd
+                sampled = cmd is None or "{" + template_field(SAMPLE_KEY) + "}" in cmd
                 if samples == 1 or not sampled:
                     run_settings = ((SAMPLE_KEY, values[0]),) if cmd is not None and sampled else ()
                     suite.runs.append(RunSpec(replay, sys_name, cmd, str(folder), timeout, thread_env, 0,
