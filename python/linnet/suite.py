@@ -44,6 +44,7 @@ class ReplaySpec:
     start: float
     duration: Optional[float]
     settings: tuple           # sorted (key, value) pairs of simulate()'s realism keyword arguments
+    label: str = ""           # what the settings are called in tables (e.g. "hard"); not part of the cache key
 
     def key(self) -> str:
         h = hashlib.sha256()
@@ -114,8 +115,9 @@ def _run_system(cmd: Optional[str], dataset: Path, out: Path, timeout: float, th
                 settings: tuple = ()) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     tum = out / "trajectory.tum"
-    if tum.exists():
-        tum.unlink()
+    for stale in (tum, out / ODOMETRY_FILE):
+        if stale.exists():
+            stale.unlink()
     if cmd is None:
         argv = [sys.executable, "-m", "linnet.cli", "run", str(dataset), "--out", str(out), "--quiet"]
         for key, value in settings:
@@ -160,25 +162,31 @@ def _evaluate(tum: Path, gt: Path):
         return None, str(e).splitlines()[0][:80]
 
 
+#: A run's odometry (the estimate before loop correction), evaluated too when the system writes it (Linnet does).
+ODOMETRY_FILE = "odometry.tum"
+
+
 def run_job(spec: RunSpec, replay: dict) -> dict:
     """Run one system on a rendered replay and evaluate it: one table row."""
     dataset = Path(replay["dataset"])
     sim = replay["summary"]
     out = Path(spec.out)
     res = _run_system(spec.command, dataset, out, spec.timeout_s, spec.thread_env, spec.settings)
-    ape, eval_err = _evaluate(out / "trajectory.tum", dataset / "mav0" / "state_groundtruth_estimate0" / "data.csv")
+    gt = dataset / "mav0" / "state_groundtruth_estimate0" / "data.csv"
+    ape, eval_err = _evaluate(out / "trajectory.tum", gt)
+    odometry = _evaluate(out / ODOMETRY_FILE, gt)[0] if (out / ODOMETRY_FILE).is_file() else None
     summ = res.get("summary", {})
     seq_dur = sim["duration_s"]
     return {
         "sequence": spec.replay.name, "scene": spec.replay.scene, "system": spec.system, "sample": spec.sample,
-        "settings": dict(spec.settings), "ape_rmse_m": ape,
+        "settings": dict(spec.settings), "ape_rmse_m": ape, "ape_odometry_m": odometry,
         "real_time_factor": float(summ.get("real_time_factor", res["wall_s"] / max(seq_dur, 1e-9))),
         "init_time_s": summ.get("initialisation_time_s"),
         "failures": summ.get("reinitialisations", 0 if res["returncode"] == 0 else None),
         "error": res["error"] or (eval_err if ape is None else None),
         "returncode": res["returncode"], "wall_s": res["wall_s"], "frames": sim["frames"],
         "duration_s": seq_dur, "dataset": str(dataset), "out": str(out),
-        "realism": dict(spec.replay.settings),
+        "realism": dict(spec.replay.settings), "replay_label": spec.replay.label,
     }
 
 
@@ -278,19 +286,26 @@ def make_executor(mode: str, address: Optional[str] = None, echo: Callable[[str]
 
 
 def markdown_table(rows: list) -> str:
-    head = ("| sequence | scene | system | APE RMSE [m] | real-time factor | init [s] | failures |\n"
-            "|---|---|---|---|---|---|---|")
+    head = ("| sequence | scene | system | APE RMSE [m] | real-time factor | init [s] | failures | odometry APE [m] |\n"
+            "|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in rows:
         ape = f"{r['ape_rmse_m']:.3f}" if r["ape_rmse_m"] is not None else "—"
+        odometry = f"{r['ape_odometry_m']:.3f}" if r.get("ape_odometry_m") is not None else "—"
         init = f"{r['init_time_s']:.2f}" if r["init_time_s"] is not None else "—"
         fail = r["failures"] if r["failures"] is not None else "—"
         if r["error"]:
             fail = f"{fail} ({r['error']})"
         system = r["system"] + "".join(f" ({k}={v})" for k, v in (r.get("settings") or {}).items())
-        lines.append(f"| {r['sequence']} | {r['scene']} | {system} | {ape} | {r['real_time_factor']:.2f} | "
-                     f"{init} | {fail} |")
+        lines.append(f"| {r['sequence']} | {scene_label(r)} | {system} | {ape} | {r['real_time_factor']:.2f} | "
+                     f"{init} | {fail} | {odometry} |")
     return "\n".join(lines)
+
+
+def scene_label(row: dict) -> str:
+    """The scene, with the replay's settings label when it has one (``room (hard)``)."""
+    label = row.get("replay_label")
+    return f"{row['scene']} ({label})" if label else row["scene"]
 
 
 def sample_summary(rows: list) -> list:
@@ -301,13 +316,18 @@ def sample_summary(rows: list) -> list:
 
     groups: dict = {}
     for r in rows:
-        groups.setdefault((r["sequence"], r["scene"], r["system"]), []).append(r)
+        groups.setdefault((r["sequence"], scene_label(r), r["system"]), []).append(r)
     out = []
     for (sequence, scene, system), rs in groups.items():
         apes = [r["ape_rmse_m"] for r in rs if r["ape_rmse_m"] is not None]
+        odometry = [r.get("ape_odometry_m") for r in rs]
         fails = [r["failures"] for r in rs]
         out.append({
             "sequence": sequence, "scene": scene, "system": system, "runs": len(rs), "evaluated": len(apes),
+            # over the same runs as ape_mean_m, and only when each of them wrote its odometry
+            "ape_odometry_mean_m": (statistics.fmean(o for o, r in zip(odometry, rs) if r["ape_rmse_m"] is not None)
+                                    if apes and all(o is not None for o, r in zip(odometry, rs)
+                                                    if r["ape_rmse_m"] is not None) else None),
             "ape_mean_m": statistics.fmean(apes) if apes else None,
             "ape_sd_m": statistics.stdev(apes) if len(apes) >= 2 else None,
             "ape_min_m": min(apes) if apes else None, "ape_max_m": max(apes) if apes else None,
@@ -323,14 +343,43 @@ def summary_table(summary: list) -> str:
         return f"{x:.4f}" if x is not None else "—"
 
     lines = ["| sequence | scene | system | runs | APE mean [m] | sd [m] | min [m] | max [m] | real-time factor | "
-             "failures |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "failures | odometry APE mean [m] |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for g in summary:
         runs = f"{g['evaluated']} of {g['runs']}" if g["evaluated"] != g["runs"] else str(g["runs"])
         fails = g["failures"] if g["failures"] is not None else "—"
         lines.append(f"| {g['sequence']} | {g['scene']} | {g['system']} | {runs} | {m(g['ape_mean_m'])} | "
                      f"{m(g['ape_sd_m'])} | {m(g['ape_min_m'])} | {m(g['ape_max_m'])} | "
-                     f"{g['real_time_factor_mean']:.3f} | {fails} |")
+                     f"{g['real_time_factor_mean']:.3f} | {fails} | {m(g.get('ape_odometry_mean_m'))} |")
     return "\n".join(lines)
+
+
+def system_means(summary: list) -> list:
+    """Per system (first-seen order), the mean over its replays of sample_summary()'s per-replay APE means (and of
+    the odometry's): the one figure that compares two configurations over a whole suite. None where a replay has no
+    mean."""
+    import statistics
+
+    systems: dict = {}
+    for g in summary:
+        systems.setdefault(g["system"], []).append(g)
+    out = []
+    for system, gs in systems.items():
+        def mean_of(key):
+            values = [g.get(key) for g in gs]
+            return statistics.fmean(values) if all(v is not None for v in values) else None
+
+        out.append({"system": system, "replays": len(gs), "ape_mean_m": mean_of("ape_mean_m"),
+                    "ape_odometry_mean_m": mean_of("ape_odometry_mean_m")})
+    return out
+
+
+def means_text(means: list) -> str:
+    """system_means() as one line per system."""
+    def m(x):
+        return f"{x:.5f} m" if x is not None else "—"
+
+    return "\n".join(f"{g['system']}: mean over {g['replays']} replays, APE {m(g['ape_mean_m'])}, odometry "
+                     f"{m(g['ape_odometry_mean_m'])}" for g in means)
 
 
 def reproducible(row: dict) -> dict:

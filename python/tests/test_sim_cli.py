@@ -151,3 +151,66 @@ def test_bench_suite_samples_print_the_spread(tmp_path, short_loop_tum):
             for k in (0, 1)] == ["0.01", "0.0099"]
     bad = _run("bench", "suite", "--sequences", str(short_loop_tum), "--samples", "0", "--executor", "serial")
     assert bad.returncode == 2 and "samples" in bad.stderr
+
+
+def test_build_suite_reference_set_is_the_readmes_nine_replays(tmp_path, shared_data):
+    from linnet.commands.bench_suite import REFERENCE_REAL_IMU, build_suite
+    from linnet.sim.realism import REALISM_PRESETS
+
+    shared_data("euroc_groundtruth")
+    real_imu = shared_data(str(REFERENCE_REAL_IMU))
+    suite = build_suite("ignored", "ignored", ("linnet",), None, 0.0, 0, "easy", tmp_path / "cache",
+                        tmp_path / "runs", 60.0, reference=True)
+    replays = [(r.name, r.scene, r.label) for r in suite.replays]
+    assert replays == [("V1_02_medium", "room", "hard"), ("V2_01_easy", "room", "hard"),
+                       ("V2_02_medium", "room", "hard"), ("MH_01_easy", "hall", "hard"),
+                       ("MH_04_difficult", "hall", "hard"), ("V1_01_easy_vicon2gt", "room", "real IMU"),
+                       ("V1_02_medium", "lowtex", "blur"), ("V2_01_easy", "lowtex", "blur"),
+                       ("V2_02_medium", "lowtex", "blur")]
+    settings = [dict(r.settings) for r in suite.replays]
+    assert all(s == REALISM_PRESETS["hard"] for s in settings[:5])
+    blur = dict(REALISM_PRESETS["easy"], blur=True, exposure_changes=True)
+    assert settings[6:] == [blur] * 3 and settings[5] == dict(blur, real_imu=str(real_imu))
+    # One run each, in its own folder; a replay's label is not part of its cache key.
+    assert len(suite.runs) == 9 and len({run.out for run in suite.runs}) == 9
+    assert len({r.key() for r in suite.replays}) == 9
+
+
+def test_bench_suite_evaluates_the_odometry_and_gives_each_systems_mean(tmp_path, short_loop_tum):
+    # The stand-in writes the ground truth as its trajectory and as its odometry; a second one writes no odometry.
+    gt_to_tum = ("awk -F, '!/^#/ {{printf \"%.9f %s %s %s %s %s %s %s\\n\", $1/1e9, $2, $3, $4, $6, $7, $8, $5}}' "
+                 "{dataset}/mav0/state_groundtruth_estimate0/data.csv")
+    both = f"both={gt_to_tum} > {{tum}} && cp {{tum}} {{out}}/odometry.tum"
+    plain = f"plain={gt_to_tum} > {{tum}}"
+    r = _run("bench", "suite", "--sequences", str(short_loop_tum), "--scenes", "lowtex,room", "--duration", "1.0",
+             "--start", "2", "--systems", both, "--systems", plain, "--cache", str(tmp_path / "cache"),
+             "--runs", str(tmp_path / "runs"), "--json", str(tmp_path / "rows.json"), "--executor", "serial",
+             "--realism", "easy")
+    assert r.returncode == 0, r.stderr
+    rows = json.loads((tmp_path / "rows.json").read_text())
+    assert [row["system"] for row in rows] == ["both", "plain", "both", "plain"]
+    assert all(row["ape_odometry_m"] < 1e-6 for row in rows if row["system"] == "both")
+    assert all(row["ape_odometry_m"] is None for row in rows if row["system"] == "plain")
+    table = [line for line in r.stdout.splitlines() if line.startswith("|")]
+    assert table[2].startswith("| short | lowtex | both | 0.000 |") and table[2].endswith("| 0.000 |"), r.stdout
+    assert table[3].endswith("| — |")
+    assert "both: mean over 2 replays, APE 0.00000 m, odometry 0.00000 m" in r.stdout, r.stdout
+    assert "plain: mean over 2 replays, APE 0.00000 m, odometry —" in r.stdout
+
+
+def test_system_means_average_the_per_replay_means():
+    from linnet.suite import sample_summary, system_means
+
+    def row(sequence, ape, odometry):
+        return {"sequence": sequence, "scene": "room", "system": "x", "ape_rmse_m": ape, "ape_odometry_m": odometry,
+                "real_time_factor": 0.2, "failures": 0}
+
+    # Replay a: two samples (means 0.02 / 0.04), replay b: one (0.05 / 0.07); the mean of the means, not of the runs.
+    summary = sample_summary([row("a", 0.01, 0.03), row("a", 0.03, 0.05), row("b", 0.05, 0.07)])
+    assert summary[0]["ape_odometry_mean_m"] == pytest.approx(0.04)
+    (means,) = system_means(summary)
+    assert means["replays"] == 2
+    assert means["ape_mean_m"] == pytest.approx(0.035) and means["ape_odometry_mean_m"] == pytest.approx(0.055)
+    # A run without its odometry leaves that replay, and so the system, without an odometry mean.
+    summary = sample_summary([row("a", 0.01, 0.03), row("a", 0.03, None), row("b", 0.05, 0.07)])
+    assert summary[0]["ape_odometry_mean_m"] is None and system_means(summary)[0]["ape_odometry_mean_m"] is None
