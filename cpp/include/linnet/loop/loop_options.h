@@ -44,12 +44,13 @@ struct LoopOptions {
   int orb_patch_px = 31;               // ORB descriptor patch side, pixels
   int corners = 400;                   // FAST corners described per keyframe besides the tracked ones
   int fast_threshold = 20;             // their FAST threshold
-  int stored_corners = 400;            // of those, the strongest kept in the database's copy of a place (a new
+  int stored_corners = 200;            // of those, the strongest kept in the database's copy of a place (a new
                                        // keyframe is matched with all of them); < 0: all. A place is mostly its
-                                       // corners (19 of its 25 KB: 470 corners at 40 bytes). 10 min figure-eight,
-                                       // 150: places 14.4 -> 10.6 MB, resident set growth after the first minute
-                                       // 12.0 -> 11.1 %; nine hard / low-texture replays' mean APE the same
-                                       // (0.01046 m) but MH_01 hall +7.6 %, V2_02 room -9.5 % (one sample)
+                                       // corners (19 of its 25 KB at 400: 470 corners at 40 bytes). 400 -> 200,
+                                       // five KLT stops of the nine hard / low-texture replays: loop-corrected mean
+                                       // 0.01139 -> 0.01141 m (each replay -2.0 to +4.5 %, within its spread), the
+                                       // odometry the same; 10 min figure-eight: places 12.1 -> 9.8 MB, resident
+                                       // set growth after the first minute +10.8 -> +10.0 %
   int max_hamming = 64;                // largest descriptor distance of a match, bits (of 256)
   double match_ratio = 0.8;            // best / second-best descriptor distance
   int min_inliers = 15;                // PnP RANSAC inliers for a loop. Low-texture keyframes have 50-70 3D corners and
