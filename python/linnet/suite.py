@@ -174,7 +174,7 @@ def run_job(spec: RunSpec, replay: dict) -> dict:
     res = _run_system(spec.command, dataset, out, spec.timeout_s, spec.thread_env, spec.settings)
     gt = dataset / "mav0" / "state_groundtruth_estimate0" / "data.csv"
     ape, eval_err = _evaluate(out / "trajectory.tum", gt)
-    odometry = _evaluate(out / ODOMETRY_FILE, gt)[0] if (out / ODOMETRY_FILE).is_file() else None
+    odometry, _ = _evaluate(out / ODOMETRY_FILE, gt)  # None when the system wrote none
     summ = res.get("summary", {})
     seq_dur = sim["duration_s"]
     return {
@@ -320,14 +320,12 @@ def sample_summary(rows: list) -> list:
     out = []
     for (sequence, scene, system), rs in groups.items():
         apes = [r["ape_rmse_m"] for r in rs if r["ape_rmse_m"] is not None]
-        odometry = [r.get("ape_odometry_m") for r in rs]
+        # over the same runs as ape_mean_m, and only when each of them wrote its odometry
+        odometry = [r.get("ape_odometry_m") for r in rs if r["ape_rmse_m"] is not None]
         fails = [r["failures"] for r in rs]
         out.append({
             "sequence": sequence, "scene": scene, "system": system, "runs": len(rs), "evaluated": len(apes),
-            # over the same runs as ape_mean_m, and only when each of them wrote its odometry
-            "ape_odometry_mean_m": (statistics.fmean(o for o, r in zip(odometry, rs) if r["ape_rmse_m"] is not None)
-                                    if apes and all(o is not None for o, r in zip(odometry, rs)
-                                                    if r["ape_rmse_m"] is not None) else None),
+            "ape_odometry_mean_m": statistics.fmean(odometry) if odometry and None not in odometry else None,
             "ape_mean_m": statistics.fmean(apes) if apes else None,
             "ape_sd_m": statistics.stdev(apes) if len(apes) >= 2 else None,
             "ape_min_m": min(apes) if apes else None, "ape_max_m": max(apes) if apes else None,

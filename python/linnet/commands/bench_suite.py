@@ -121,10 +121,12 @@ def replay_specs(sequences: str, scenes: str, duration, start, seed, realism, re
     gt_dir = shared_groundtruth_dir()
     if reference:
         real_imu = gt_dir.parent / REFERENCE_REAL_IMU
-        return [ReplaySpec(name, str(gt_file), scene, seed, start, duration, reference_settings(label, real_imu),
-                           label)
-                for (name, gt_file), scene, label in ((resolve_sequence(n, gt_dir), sc, lb)
-                                                      for n, sc, lb in REFERENCE_REPLAYS)]
+        replays = []
+        for sequence, scene, label in REFERENCE_REPLAYS:
+            name, gt_file = resolve_sequence(sequence, gt_dir)
+            replays.append(ReplaySpec(name, str(gt_file), scene, seed, start, duration,
+                                      reference_settings(label, real_imu), label))
+        return replays
     seqs = [resolve_sequence(s.strip(), gt_dir) for s in sequences.split(",") if s.strip()]
     scene_list = [s.strip() for s in scenes.split(",") if s.strip()]
     for s in scene_list:
