@@ -338,6 +338,9 @@ void EstimatorCore::slideWindow() {
   } else if (n > options_.window_size + 1) {
     marginaliseOldest();
   }
+  // A moving (re-)initialisation starts from init.moving_frames frames, more than a small window holds: the surplus
+  // is marginalised here. One frame per slide would keep the window at that size for the rest of the run.
+  while (window_.size() > options_.window_size + 1) marginaliseOldest();
 }
 
 }  // namespace linnet

@@ -1,4 +1,5 @@
 // System tests of the Estimator on the synthetic stereo-inertial world (known ground truth, no images).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -37,6 +38,33 @@ TEST(EstimatorSynthetic, MovingStartInitialisesAndTracksAccurately) {
   EXPECT_GT(r.outputs.back().num_points, 30);
   // The moving initialiser's gyroscope bias (visual vs preintegrated rotations) is already close.
   EXPECT_LT((r.outputs[static_cast<std::size_t>(r.first_pose)].b_g - so.gyr_bias).norm(), 2e-3);
+}
+
+// A moving start collects init.moving_frames frames before its first solve; a window_size below that must still
+// hold: the window keeps window_size frames plus the newest from the first slide on, not moving_frames for the run.
+TEST(EstimatorSynthetic, WindowSizeHoldsAfterAMovingStart) {
+  SyntheticOptions so;
+  so.duration_s = 3.0;
+  SyntheticVio sim(so);
+  for (int window : {3, 5, 8}) {
+    EstimatorOptions o;
+    o.window_size = window;
+    ASSERT_GT(o.init.moving_frames, 3 + 1);
+    Estimator est(o, syntheticNoise(), eurocTBC0(), eurocTBC1());
+    std::size_t next_imu = 0, largest = 0;
+    int with_pose = 0;
+    for (const FrameObservations& obs : sim.frames()) {
+      while (next_imu < sim.imu().size()) {
+        est.addImu(sim.imu()[next_imu++]);
+        if (sim.imu()[next_imu - 1].t >= obs.t) break;
+      }
+      if (!est.addFrame(obs).has_pose) continue;
+      ++with_pose;
+      largest = std::max(largest, est.windowPoses().size());
+    }
+    EXPECT_GT(with_pose, 30) << "window " << window;
+    EXPECT_EQ(largest, static_cast<std::size_t>(window + 1)) << "window " << window;
+  }
 }
 
 TEST(EstimatorSynthetic, AtRestTheEstimateStaysStill) {
