@@ -8,6 +8,8 @@
 #include <string>
 #include <thread>
 
+#include <sched.h>
+
 #include <opencv2/imgproc.hpp>
 
 #include "linnet/core/cpu_clock.h"
@@ -23,6 +25,16 @@ namespace linnet {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// CPUs the process may run on (its affinity mask, e.g. under taskset); 0 when unknown.
+int allowedCpus() {
+#ifdef __linux__
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) == 0) return CPU_COUNT(&set);
+#endif
+  return 0;
+}
 
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -281,7 +293,9 @@ struct System::Impl {
 System::System(const Config& config) : config_(config) {
   config_.validate();
   impl_ = std::make_unique<Impl>(config_);
-  if (config_.pipeline.use_lines && config_.pipeline.parallel_frontend)
+  // On a single CPU the two front-end threads would only take turns on it (and on its caches): one runs after the
+  // other instead.
+  if (config_.pipeline.use_lines && config_.pipeline.parallel_frontend && allowedCpus() != 1)
     impl_->line_worker = std::make_unique<WorkerThread>();
   impl_->estimator_thread = std::jthread([this] { impl_->estimatorLoop(&dropped_); });
   impl_->frontend_thread = std::jthread([this] { impl_->frontendLoop(); });

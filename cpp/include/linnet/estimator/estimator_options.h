@@ -376,9 +376,9 @@ struct ZeroVelocityOptions {
 };
 
 struct EstimatorOptions {
-  int window_size = 6;               // keyframes in the window (plus the newest frame). Five samples of the nine
-                                     // hard / low-texture replays: 6 vs 7 gives APE -1.6 % loop-corrected, -3.8 %
-                                     // odometry, for -3.8 % instructions (7 vs 10: 11 vs 15 mm, ~15 % less CPU)
+  int window_size = 5;               // keyframes in the window (plus the newest frame). Five samples of the nine
+                                     // hard / low-texture replays: 5 vs 6 gives APE -2.0 % loop-corrected, -3.2 %
+                                     // odometry, for -3.2 % CPU; 6 vs 7 -1.6 / -3.8 %, -3.8 % instructions
   SolverOptions solver;
   KeyframeOptions keyframe;
   InitOptions init;
