@@ -333,13 +333,9 @@ void EstimatorCore::dropFrame(int index) {
 
 void EstimatorCore::slideWindow() {
   const int n = window_.size();
-  if (n >= 3 && !window_[n - 2].keyframe) {
-    dropFrame(n - 2);
-  } else if (n > options_.window_size + 1) {
-    marginaliseOldest();
-  }
-  // A moving (re-)initialisation starts from init.moving_frames frames, more than a small window holds: the surplus
-  // is marginalised here. One frame per slide would keep the window at that size for the rest of the run.
+  if (n >= 3 && !window_[n - 2].keyframe) dropFrame(n - 2);
+  // Usually one frame; a moving (re-)initialisation starts from init.moving_frames frames, more than a small window
+  // holds, and the surplus goes at once (one frame per slide would keep the window at that size for the whole run).
   while (window_.size() > options_.window_size + 1) marginaliseOldest();
 }
 

@@ -24,9 +24,11 @@ struct RunResult {
 inline ImuNoise syntheticNoise() { return ImuNoise(); }
 
 /// Feeds the IMU up to (and including) the first sample at or after each frame, then the frame.
-/// `edit` may change a frame before it is given to the estimator (failure injection).
-template <class Edit>
-RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options, bool stereo, Edit edit) {
+/// `edit` may change a frame before it is given to the estimator (failure injection); `after` sees the estimator and
+/// its output after each frame.
+template <class Edit, class After>
+RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options, bool stereo, Edit edit,
+                       After after) {
   const Pose& E = sim.options().calibration_error;
   Estimator est(options, syntheticNoise(), E * eurocTBC0(),
                 stereo ? std::optional<Pose>(E * eurocTBC1() * sim.options().stereo_error) : std::nullopt);
@@ -42,6 +44,7 @@ RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options,
       if (imu[next_imu - 1].t >= obs.t) break;
     }
     r.outputs.push_back(est.addFrame(obs));
+    after(static_cast<const Estimator&>(est), r.outputs.back());
   }
   // Scores.
   std::vector<Vec3> est_p, gt_p;
@@ -79,6 +82,11 @@ RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options,
     r.max_ms = ms.back();
   }
   return r;
+}
+
+template <class Edit>
+RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options, bool stereo, Edit edit) {
+  return runEstimator(sim, options, stereo, edit, [](const Estimator&, const EstimatorOutput&) {});
 }
 
 inline RunResult runEstimator(const SyntheticVio& sim, const EstimatorOptions& options, bool stereo = true) {

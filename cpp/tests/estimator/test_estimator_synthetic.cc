@@ -50,18 +50,13 @@ TEST(EstimatorSynthetic, WindowSizeHoldsAfterAMovingStart) {
     EstimatorOptions o;
     o.window_size = window;
     ASSERT_GT(o.init.moving_frames, 3 + 1);
-    Estimator est(o, syntheticNoise(), eurocTBC0(), eurocTBC1());
-    std::size_t next_imu = 0, largest = 0;
-    int with_pose = 0;
-    for (const FrameObservations& obs : sim.frames()) {
-      while (next_imu < sim.imu().size()) {
-        est.addImu(sim.imu()[next_imu++]);
-        if (sim.imu()[next_imu - 1].t >= obs.t) break;
-      }
-      if (!est.addFrame(obs).has_pose) continue;
-      ++with_pose;
-      largest = std::max(largest, est.windowPoses().size());
-    }
+    std::size_t largest = 0;
+    const RunResult r = runEstimator(sim, o, true, [](int, FrameObservations*) {},
+                                     [&](const Estimator& est, const EstimatorOutput& out) {
+                                       if (out.has_pose) largest = std::max(largest, est.windowPoses().size());
+                                     });
+    const auto with_pose = std::count_if(r.outputs.begin(), r.outputs.end(),
+                                         [](const EstimatorOutput& out) { return out.has_pose; });
     EXPECT_GT(with_pose, 30) << "window " << window;
     EXPECT_EQ(largest, static_cast<std::size_t>(window + 1)) << "window " << window;
   }
