@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
+#include "linnet/core/error.h"
 #include "linnet/estimator/manifolds.h"
 #include "linnet/geometry/plucker.h"
 
@@ -72,8 +74,21 @@ bool LineProjection::evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2*
   return true;
 }
 
-LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info)
-    : projection_(s, e, T_B_C, sqrt_info) {}
+LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info,
+                                               std::shared_ptr<SharedLinePoseTerms> shared)
+    : projection_(s, e, T_B_C, sqrt_info) {
+  reset(s, e, T_B_C, sqrt_info, std::move(shared));
+}
+
+void LineReprojectionFactor::reset(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info,
+                                   std::shared_ptr<SharedLinePoseTerms> shared) {
+  // Terms computed with other extrinsics would give a wrong residual without any sign of it.
+  if (shared && (shared->T_B_C.p != T_B_C.p || shared->T_B_C.q.coeffs() != T_B_C.q.coeffs()))
+    throw UsageError("LineReprojectionFactor: shared pose terms of other extrinsics than the factor's");
+  projection_ = LineProjection(s, e, T_B_C, sqrt_info);
+  cache_.valid = false;
+  shared_ = std::move(shared);
+}
 
 bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,
                                                   double** jacobians) const {
@@ -81,14 +96,16 @@ bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameter
   const bool want_line = jacobians != nullptr && jacobians[1] != nullptr;
   Vec2 r;
   Eigen::Matrix<double, 2, 6> Jp, Jl;
-  // The pose's terms from the cache when the pose block holds the same values (the line iterations), else anew.
+  // The pose's terms from the cache when the pose block holds the same values (the line iterations, and the other
+  // lines of the frame camera when shared), else anew.
   const double* pose = parameters[0];
-  if (!cache_.valid || !std::equal(pose, pose + 7, cache_.block.begin())) {
-    projection_.poseTerms(poseFromBlock(pose), &cache_);
-    std::copy(pose, pose + 7, cache_.block.begin());
-    cache_.valid = true;
+  LineProjection::PoseTerms& cache = shared_ ? shared_->terms : cache_;
+  if (!cache.valid || !std::equal(pose, pose + 7, cache.block.begin())) {
+    projection_.poseTerms(poseFromBlock(pose), &cache);
+    std::copy(pose, pose + 7, cache.block.begin());
+    cache.valid = true;
   }
-  if (!projection_.evaluateWith(cache_, Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
+  if (!projection_.evaluateWith(cache, Eigen::Map<const Vec6>(parameters[1]), &r, want_pose ? &Jp : nullptr,
                                 want_line ? &Jl : nullptr))
     return false;
   residuals[0] = r.x();

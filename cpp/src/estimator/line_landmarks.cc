@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 
 #include "linnet/estimator/factors/line_factor.h"
@@ -139,14 +140,18 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
   factors_.begin();
   std::vector<ResidualSpec> out;
   const double sqrt_info = focal_length_ / options_.pixel_sigma;
+  // One set of pose terms per frame and camera (by window index, cam0 then cam1), shared by the factors of all
+  // its lines.
+  std::vector<std::shared_ptr<SharedLinePoseTerms>> shared_terms(2 * static_cast<std::size_t>(window.size()));
   for (auto& [id, lm] : landmarks_) {
     if (host_only < 0) lm.used = false;
     if (!usable(lm)) continue;
     if (host_only >= 0 && lm.obs.begin()->first != host_only) continue;
     const std::int64_t key = lineBlockKey(id);
     for (const auto& [fid, o] : lm.obs) {
-      WindowFrame* f = const_cast<Window&>(window).find(fid);
-      if (f == nullptr) continue;
+      const int wi = window.indexOf(fid);
+      if (wi < 0) continue;
+      WindowFrame* f = &const_cast<Window&>(window)[wi];
       double s = sqrt_info;
       if (!frame_weight.empty()) {
         const auto w = frame_weight.find(fid);
@@ -155,7 +160,10 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
       auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C, bool cam1) {
         ResidualSpec r;
         if (cam1) r.cam1 = 0;
-        r.cost = factors_.make(a, b, f->capture_shift * T_B_C, s);
+        const Pose T_B_Cf = f->capture_shift * T_B_C;
+        std::shared_ptr<SharedLinePoseTerms>& terms = shared_terms[2 * static_cast<std::size_t>(wi) + (cam1 ? 1 : 0)];
+        if (!terms) terms = std::make_shared<SharedLinePoseTerms>(T_B_Cf);
+        r.cost = factors_.make(a, b, T_B_Cf, s, terms);
         r.robust = true;
         r.line = true;
         r.blocks = {f->pose.data(), lm.plucker.data()};

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -47,6 +48,14 @@ bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinement
   // this arithmetic, and it runs for every line that leaves the window.
   const LineManifold manifold;
   const ceres::HuberLoss loss(options.huber_px);  // on residuals in pixels (sqrt_info = focal)
+  // The cameras are held: each sighting's projection and pose terms are computed once, not at every evaluation.
+  std::vector<LineProjection> projections;
+  std::vector<LineProjection::PoseTerms> terms(sightings.size());
+  projections.reserve(sightings.size());
+  for (std::size_t k = 0; k < sightings.size(); ++k) {
+    projections.emplace_back(sightings[k].s, sightings[k].e, Pose(), options.focal_px);
+    projections.back().poseTerms(sightings[k].T_W_C, &terms[k]);
+  }
   // Robust cost 0.5 sum rho(|r|^2); with H and g also the reweighted normal equations in the tangent space.
   const auto cost = [&](const Vec6& L, Eigen::Matrix4d* H, Eigen::Vector4d* g) {
     Eigen::Matrix<double, kLineAmbientSize, kLineTangentSize, Eigen::RowMajor> plus;
@@ -56,11 +65,10 @@ bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinement
       g->setZero();
     }
     double total = 0.0;
-    for (const LineSighting& o : sightings) {
-      const LineProjection f(o.s, o.e, Pose(), options.focal_px);
+    for (std::size_t k = 0; k < projections.size(); ++k) {
       Vec2 r;
       Eigen::Matrix<double, 2, 6> J_line;
-      if (!f.evaluate(o.T_W_C, L, &r, nullptr, H != nullptr ? &J_line : nullptr))
+      if (!projections[k].evaluateWith(terms[k], L, &r, nullptr, H != nullptr ? &J_line : nullptr))
         return std::numeric_limits<double>::infinity();
       double rho[3];
       loss.Evaluate(r.squaredNorm(), rho);

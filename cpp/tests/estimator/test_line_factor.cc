@@ -2,11 +2,13 @@
 // manifolds (the shared checker, which fails on a wrong Jacobian), Ceres' manifold invariants, and the residual's
 // geometry against a direct construction.
 #include <algorithm>
+#include <memory>
 #include <random>
 
 #include <ceres/manifold_test_utils.h>
 #include <gtest/gtest.h>
 
+#include "linnet/core/error.h"
 #include "linnet/estimator/factors/line_factor.h"
 #include "linnet/estimator/manifolds.h"
 #include "linnet/geometry/plucker.h"
@@ -159,6 +161,56 @@ TEST(LineFactor, CachedPoseTermsGiveThePlainResultBitForBit) {
   check(pose_b, true, true);    // another pose
   check(pose_a, true, false);
   check(pose_a, false, true);
+}
+
+TEST(LineFactor, SharedPoseTermsGiveThePlainResultBitForBit) {
+  // Factors of one frame camera share its pose terms: whichever factor computed them, at whichever pose before,
+  // each factor's evaluation equals a fresh evaluate() of its own exactly.
+  std::mt19937 rng(19);
+  const Scene a = makeScene(rng, 0.004), b = makeScene(rng, 0.004), c = makeScene(rng, 0.004);
+  const auto shared = std::make_shared<SharedLinePoseTerms>(a.T_B_C);
+  // Three lines seen by the same camera (a's extrinsics), one of them also with a factor of its own.
+  const LineReprojectionFactor f1(a.s, a.e, a.T_B_C, 460.0, shared), f2(b.s, b.e, a.T_B_C, 300.0, shared),
+      f3(c.s, c.e, a.T_B_C, 460.0, shared), own(b.s, b.e, a.T_B_C, 300.0);
+  double pose_a[7], pose_b[7], line_a[6], line_b[6];
+  setPose(a.T_W_B, pose_a);
+  setPose(b.T_W_B, pose_b);
+  std::copy(a.L_W.data(), a.L_W.data() + 6, line_a);
+  std::copy(b.L_W.data(), b.L_W.data() + 6, line_b);
+  using RowMajor26 = Eigen::Matrix<double, 2, 6, Eigen::RowMajor>;
+  const auto check = [&](const LineReprojectionFactor& f, const double* pose, const double* line) {
+    double r[2], jp[12], jl[12];
+    double* jac[2] = {jp, jl};
+    const double* params[2] = {pose, line};
+    ASSERT_TRUE(f.evaluateTangentSpace(params, r, jac));
+    Vec2 r0;
+    Eigen::Matrix<double, 2, 6> Jp0, Jl0;
+    ASSERT_TRUE(f.evaluate(poseFromBlock(pose), Eigen::Map<const Vec6>(line), &r0, &Jp0, &Jl0));
+    EXPECT_EQ(r[0], r0.x());
+    EXPECT_EQ(r[1], r0.y());
+    EXPECT_EQ(Eigen::Map<RowMajor26>(jp), Jp0);
+    EXPECT_EQ(Eigen::Map<RowMajor26>(jl), Jl0);
+  };
+  check(f1, pose_a, line_a);  // computes the shared terms
+  check(f2, pose_a, line_b);  // uses them
+  check(f3, pose_b, line_a);  // another pose: computes them anew
+  check(f1, pose_b, line_b);
+  check(f2, pose_a, line_a);  // and back
+  check(own, pose_a, line_b);
+  // The same factor with and without shared terms: the same numbers.
+  double r_s[2], r_o[2], jp_s[12], jp_o[12];
+  double* jac_s[2] = {jp_s, nullptr};
+  double* jac_o[2] = {jp_o, nullptr};
+  const double* params[2] = {pose_b, line_b};
+  ASSERT_TRUE(f2.evaluateTangentSpace(params, r_s, jac_s));
+  ASSERT_TRUE(own.evaluateTangentSpace(params, r_o, jac_o));
+  EXPECT_EQ(r_s[0], r_o[0]);
+  EXPECT_EQ(r_s[1], r_o[1]);
+  EXPECT_EQ(Eigen::Map<RowMajor26>(jp_s), Eigen::Map<RowMajor26>(jp_o));
+  // Terms of other extrinsics are refused, at construction and at reset.
+  EXPECT_THROW(LineReprojectionFactor(a.s, a.e, b.T_B_C, 460.0, shared), UsageError);
+  LineReprojectionFactor g(a.s, a.e, b.T_B_C, 460.0);
+  EXPECT_THROW(g.reset(a.s, a.e, b.T_B_C, 460.0, shared), UsageError);
 }
 
 TEST(LineFactor, JacobiansMatchNumericCam0AndCam1) {

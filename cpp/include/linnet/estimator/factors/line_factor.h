@@ -12,6 +12,7 @@
 #pragma once
 
 #include <array>
+#include <memory>
 
 #include <ceres/sized_cost_function.h>
 
@@ -57,15 +58,24 @@ class LineProjection {
   double sqrt_info_;
 };
 
+/// The pose terms of one camera of one frame, shared by the line factors of all the lines it sees: they depend only
+/// on the pose block and the camera's extrinsics, so the first factor evaluated at a pose computes them for all the
+/// others (a window has about 90 lines in each of 12 frame cameras).
+struct SharedLinePoseTerms {
+  explicit SharedLinePoseTerms(const Pose& T_B_C) : T_B_C(T_B_C) {}
+  Pose T_B_C;  // the extrinsics of every factor that uses these terms (checked when a factor takes them)
+  LineProjection::PoseTerms terms;
+};
+
 class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public TangentJacobians {
  public:
-  /// As LineProjection's.
-  LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info);
+  /// As LineProjection's. `shared` (optional): the pose terms of the factors of the same frame and camera; its
+  /// extrinsics must be T_B_C (UsageError otherwise).
+  LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info,
+                         std::shared_ptr<SharedLinePoseTerms> shared = nullptr);
   /// As if constructed anew with these arguments (FactorPool).
-  void reset(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info) {
-    projection_ = LineProjection(s, e, T_B_C, sqrt_info);
-    cache_.valid = false;
-  }
+  void reset(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info,
+             std::shared_ptr<SharedLinePoseTerms> shared = nullptr);
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
   /// The pose Jacobian in the tangent space, the line's w.r.t. the Plücker coordinates (as Evaluate).
@@ -80,9 +90,11 @@ class LineReprojectionFactor : public ceres::SizedCostFunction<2, 7, 6>, public 
  private:
   LineProjection projection_;
   // The window solver's line iterations evaluate each factor several times at one pose (only the line moves), so
-  // evaluateTangentSpace keeps the last pose's terms. The cache makes concurrent evaluations of one factor object
-  // unsafe; the window solves are single-threaded.
+  // evaluateTangentSpace keeps the last pose's terms: its own, or the frame camera's shared ones. Either cache makes
+  // concurrent evaluations unsafe (of one factor, or of factors sharing terms); the window solves are
+  // single-threaded.
   mutable LineProjection::PoseTerms cache_;
+  std::shared_ptr<SharedLinePoseTerms> shared_;
 };
 
 /// Mean endpoint-to-line distance in pixels of one observation (focal_px times the normalised distances), +infinity
