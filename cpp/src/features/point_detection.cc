@@ -62,10 +62,6 @@ std::vector<Candidate> shiTomasiCandidates(const cv::Mat& image, const cv::Mat& 
 
 cv::Mat detectionMask(const cv::Size& size, const std::vector<cv::Point2f>& points, double min_distance_px,
                       int border_px, std::vector<unsigned char>* keep) {
-  cv::Mat mask(size, CV_8UC1, cv::Scalar(0));
-  const int b = std::max(0, border_px);
-  if (size.width > 2 * b && size.height > 2 * b)
-    mask(cv::Rect(b, b, size.width - 2 * b, size.height - 2 * b)).setTo(255);
   cv::Mat occupied(size, CV_8UC1, cv::Scalar(0));  // discs only, so that border points are still kept
   const int radius = std::max(1, static_cast<int>(std::lround(min_distance_px)));
   if (keep) keep->assign(points.size(), 1);
@@ -77,7 +73,17 @@ cv::Mat detectionMask(const cv::Size& size, const std::vector<cv::Point2f>& poin
       continue;
     }
     cv::circle(occupied, c, radius, cv::Scalar(255), cv::FILLED);
-    cv::circle(mask, c, radius, cv::Scalar(0), cv::FILLED);
+  }
+  // The mask: the image inside the border, without the discs (each disc drawn once, not into both images).
+  const int b = std::max(0, border_px);
+  if (size.width <= 2 * b || size.height <= 2 * b) return cv::Mat(size, CV_8UC1, cv::Scalar(0));
+  cv::Mat mask;
+  cv::bitwise_not(occupied, mask);
+  if (b > 0) {
+    mask.rowRange(0, b).setTo(0);
+    mask.rowRange(size.height - b, size.height).setTo(0);
+    mask.colRange(0, b).setTo(0);
+    mask.colRange(size.width - b, size.width).setTo(0);
   }
   return mask;
 }

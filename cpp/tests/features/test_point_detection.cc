@@ -1,6 +1,8 @@
 // Corner detection: quota, minimum distance, mask, spread over the grid, determinism, degenerate images.
-#include <gtest/gtest.h>
+#include <random>
+#include <vector>
 
+#include <gtest/gtest.h>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -124,6 +126,39 @@ TEST(PointDetection, CrowdedTracksAreFlagged) {
   const std::vector<cv::Point2f> pts{{100.f, 100.f}, {110.f, 100.f}, {200.f, 100.f}, {100.f, 125.f}};
   detectionMask(cv::Size(640, 480), pts, 30.0, 5, &keep);
   EXPECT_EQ(keep, (std::vector<unsigned char>{1, 0, 1, 0}));
+}
+
+TEST(PointDetection, MaskEqualsThePlainDrawingBitForBit) {
+  // The mask is the border rectangle without the kept points' discs, computed from the discs drawn once; the plain
+  // version draws each disc into the mask as well. Points outside the image, crowded ones and all borders.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> x(-40.f, 700.f), y(-40.f, 520.f);
+  const cv::Size size(640, 480);
+  for (int trial = 0; trial < 12; ++trial) {
+    std::vector<cv::Point2f> pts(static_cast<std::size_t>(20 * trial));
+    for (cv::Point2f& p : pts) p = {x(rng), y(rng)};
+    for (const int border : {0, 1, 8, 239, 240, 400}) {
+      std::vector<unsigned char> keep;
+      const cv::Mat mask = detectionMask(size, pts, 30.0, border, &keep);
+      cv::Mat plain(size, CV_8UC1, cv::Scalar(0)), occupied(size, CV_8UC1, cv::Scalar(0));
+      if (size.width > 2 * border && size.height > 2 * border)
+        plain(cv::Rect(border, border, size.width - 2 * border, size.height - 2 * border)).setTo(255);
+      std::vector<unsigned char> plain_keep(pts.size(), 1);
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        const cv::Point c(cvRound(pts[i].x), cvRound(pts[i].y));
+        if (cv::Rect(0, 0, size.width, size.height).contains(c) && occupied.at<unsigned char>(c)) {
+          plain_keep[i] = 0;
+          continue;
+        }
+        cv::circle(occupied, c, 30, cv::Scalar(255), cv::FILLED);
+        cv::circle(plain, c, 30, cv::Scalar(0), cv::FILLED);
+      }
+      ASSERT_EQ(mask.size(), size);
+      ASSERT_EQ(mask.type(), CV_8UC1);
+      EXPECT_EQ(cv::countNonZero(mask != plain), 0) << "trial " << trial << ", border " << border;
+      EXPECT_EQ(keep, plain_keep);
+    }
+  }
 }
 
 TEST(PointDetection, FlatImagesGiveNothing) {
