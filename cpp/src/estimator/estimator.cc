@@ -150,12 +150,16 @@ EstimatorOutput EstimatorCore::output(const WindowFrame& f) const {
 }
 
 NavState EstimatorCore::predictFrom(const WindowFrame& f, Timestamp t) const {
+  Preintegration pre(noise_, f.ba(), f.bg(), preint_options_);
+  for (const ImuSample& m : imu_.samplesBetween(f.t, t)) pre.push(m);
+  return predictWith(f, pre, t);
+}
+
+NavState EstimatorCore::predictWith(const WindowFrame& f, const Preintegration& pre, Timestamp t) const {
   NavState s;
   s.t = t;
   s.b_a = f.ba();
   s.b_g = f.bg();
-  Preintegration pre(noise_, s.b_a, s.b_g, preint_options_);
-  for (const ImuSample& m : imu_.samplesBetween(f.t, t)) pre.push(m);
   const Pose T = f.T_W_B();
   const double dt = pre.sumDt();
   s.T_W_B = Pose(T.q * pre.gamma(), T.p + f.v() * dt + 0.5 * g_W_ * dt * dt + T.q * pre.alpha());
@@ -167,7 +171,7 @@ WindowFrame& EstimatorCore::pushPredicted(Timestamp t) {
   const WindowFrame& prev = window_.newest();
   auto pre = std::make_unique<Preintegration>(noise_, prev.ba(), prev.bg(), preint_options_);
   for (const ImuSample& m : imu_.samplesBetween(prev.t, t)) pre->push(m);
-  const NavState s = predictFrom(prev, t);
+  const NavState s = predictWith(prev, *pre, t);  // the frame's own preintegration: the samples integrated once
   WindowFrame& f = window_.push(t);
   f.preint = std::move(pre);
   f.setPose(s.T_W_B);
@@ -456,10 +460,7 @@ EstimatorOutput EstimatorCore::addFrame(const FrameObservations& obs) {
   const NavState predicted{f.t, f.T_W_B(), f.v(), f.ba(), f.bg()};
   points_.observe(f.id, obs.points);
   observeLines(f.id, obs);
-  std::vector<Vec3> p_W;
-  std::vector<Vec2> uv;
-  points_.triangulatedIn(window_, f.id, &p_W, &uv);
-  const int tracked_points = static_cast<int>(p_W.size());
+  const int tracked_points = points_.countTriangulatedFromElsewhere(f.id);
   // Lines already in the map count as tracked landmarks: in low texture they carry the frame.
   const int tracked = tracked_points + lines_.countTriangulatedIn(f.id);
   if (tracked < options_.failure.min_tracked) {

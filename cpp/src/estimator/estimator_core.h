@@ -78,6 +78,8 @@ class EstimatorCore {
   /// A new window frame at obs.t, its preintegration from the newest frame and the IMU-predicted state.
   WindowFrame& pushPredicted(Timestamp t);
   NavState predictFrom(const WindowFrame& f, Timestamp t) const;
+  /// The same with the IMU samples from f.t to t already preintegrated at f's biases.
+  NavState predictWith(const WindowFrame& f, const Preintegration& pre, Timestamp t) const;
   void decideKeyframe(WindowFrame& f, int tracked);
   /// Zero-velocity update test for the newest frame: both frames' estimated speeds below zero_velocity.max_speed,
   /// the IMU at rest over zero_velocity.window_s and the points tracked from the previous frame still (median

@@ -256,6 +256,12 @@ void PointLandmarks::triangulatedIn(const Window& window, FrameId frame, std::ve
   }
 }
 
+int PointLandmarks::countTriangulatedFromElsewhere(FrameId frame) const {
+  int n = 0;
+  for (const auto& [id, lm] : landmarks_) n += lm.triangulated && lm.host != frame && lm.obs.count(frame) ? 1 : 0;
+  return n;
+}
+
 std::vector<Vec3> PointLandmarks::positions(const Window& window) const {
   std::vector<Vec3> out;
   for (const auto& [id, lm] : landmarks_)

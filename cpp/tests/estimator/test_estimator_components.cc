@@ -185,6 +185,14 @@ TEST(PointLandmarks, StereoTriangulationReanchoringAndResidualKinds) {
   EXPECT_EQ(lms.triangulate(w), 1);
   lms.observe(w[1].id, observation(w[1], true));
   EXPECT_LT((lms.worldPosition(w, lms.all().at(42)) - p_W).norm(), 1e-6);
+  // Seen from frame 1, hosted by frame 0: counted for frame 1 only, as triangulatedIn lists it.
+  for (int i = 0; i < 2; ++i) {
+    std::vector<Vec3> positions;
+    std::vector<Vec2> uv;
+    lms.triangulatedIn(w, w[i].id, &positions, &uv);
+    EXPECT_EQ(lms.countTriangulatedFromElsewhere(w[i].id), static_cast<int>(positions.size()));
+    EXPECT_EQ(lms.countTriangulatedFromElsewhere(w[i].id), i);
+  }
   // right_residuals_all_frames: host frame: kind 3; the other frame: kinds 1 and 2.
   const std::vector<ResidualSpec> r = lms.residuals(w);
   ASSERT_EQ(r.size(), 3u);

@@ -70,8 +70,11 @@ class PointLandmarks {
   int countObservedIn(FrameId frame) const;
   /// Pairs (uv0 in frame a, uv0 in frame b) of the landmarks seen in both frames.
   std::vector<std::pair<Vec2, Vec2>> correspondences(FrameId a, FrameId b) const;
-  /// Triangulated landmarks observed in `frame`: world positions and that frame's cam0 observation.
+  /// Triangulated landmarks observed in `frame` and hosted by another frame: world positions and that frame's cam0
+  /// observation.
   void triangulatedIn(const Window& window, FrameId frame, std::vector<Vec3>* p_W, std::vector<Vec2>* uv0) const;
+  /// Their number (triangulatedIn's size, without computing the positions).
+  int countTriangulatedFromElsewhere(FrameId frame) const;
   /// World positions of all triangulated landmarks.
   std::vector<Vec3> positions(const Window& window) const;
   void clear() { landmarks_.clear(); }
