@@ -74,20 +74,25 @@ bool LineProjection::evaluateWith(const PoseTerms& terms, const Vec6& L_W, Vec2*
   return true;
 }
 
+namespace {
+// `shared`, after checking that its terms are for these extrinsics: terms computed with others would give a wrong
+// residual without any sign of it.
+std::shared_ptr<SharedLinePoseTerms> checkedShared(const Pose& T_B_C, std::shared_ptr<SharedLinePoseTerms> shared) {
+  if (shared && (shared->T_B_C.p != T_B_C.p || shared->T_B_C.q.coeffs() != T_B_C.q.coeffs()))
+    throw UsageError("LineReprojectionFactor: shared pose terms of other extrinsics than the factor's");
+  return shared;
+}
+}  // namespace
+
 LineReprojectionFactor::LineReprojectionFactor(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info,
                                                std::shared_ptr<SharedLinePoseTerms> shared)
-    : projection_(s, e, T_B_C, sqrt_info) {
-  reset(s, e, T_B_C, sqrt_info, std::move(shared));
-}
+    : projection_(s, e, T_B_C, sqrt_info), shared_(checkedShared(T_B_C, std::move(shared))) {}
 
 void LineReprojectionFactor::reset(const Vec2& s, const Vec2& e, const Pose& T_B_C, double sqrt_info,
                                    std::shared_ptr<SharedLinePoseTerms> shared) {
-  // Terms computed with other extrinsics would give a wrong residual without any sign of it.
-  if (shared && (shared->T_B_C.p != T_B_C.p || shared->T_B_C.q.coeffs() != T_B_C.q.coeffs()))
-    throw UsageError("LineReprojectionFactor: shared pose terms of other extrinsics than the factor's");
+  shared_ = checkedShared(T_B_C, std::move(shared));
   projection_ = LineProjection(s, e, T_B_C, sqrt_info);
   cache_.valid = false;
-  shared_ = std::move(shared);
 }
 
 bool LineReprojectionFactor::evaluateTangentSpace(double const* const* parameters, double* residuals,

@@ -160,10 +160,10 @@ std::vector<ResidualSpec> LineLandmarks::residuals(const Window& window, FrameId
       auto add = [&](const Vec2& a, const Vec2& b, const Pose& T_B_C, bool cam1) {
         ResidualSpec r;
         if (cam1) r.cam1 = 0;
-        const Pose T_B_Cf = f->capture_shift * T_B_C;
+        // The frame camera's extrinsics (capture shift included) are computed once, with its shared terms.
         std::shared_ptr<SharedLinePoseTerms>& terms = shared_terms[2 * static_cast<std::size_t>(wi) + (cam1 ? 1 : 0)];
-        if (!terms) terms = std::make_shared<SharedLinePoseTerms>(T_B_Cf);
-        r.cost = factors_.make(a, b, T_B_Cf, s, terms);
+        if (!terms) terms = std::make_shared<SharedLinePoseTerms>(f->capture_shift * T_B_C);
+        r.cost = factors_.make(a, b, terms->T_B_C, s, terms);
         r.robust = true;
         r.line = true;
         r.blocks = {f->pose.data(), lm.plucker.data()};
