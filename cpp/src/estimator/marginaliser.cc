@@ -86,6 +86,20 @@ void symmetrise(const std::vector<std::pair<int, int>>& dense, Eigen::MatrixXd* 
         }
 }
 
+/// H(i, j) = H(j, i) for i > j, except where both columns belong to `dense` ranges (offset, size): the two-row
+/// residuals sum only into the upper block of a pair of blocks that are not both dense (their lower block would take
+/// the same sums: each entry's products are the same, commuted, in the same order), and nothing else reaches it.
+void mirrorTwoRowBlocks(const std::vector<std::pair<int, int>>& dense, Eigen::MatrixXd* H) {
+  const Eigen::Index n = H->rows();
+  std::vector<unsigned char> in_dense(static_cast<std::size_t>(n), 0);
+  for (const auto& [o, s] : dense) std::fill_n(in_dense.begin() + o, s, 1);
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const bool dj = in_dense[static_cast<std::size_t>(j)] != 0;
+    for (Eigen::Index i = j + 1; i < n; ++i)
+      if (!(dj && in_dense[static_cast<std::size_t>(i)])) (*H)(i, j) = (*H)(j, i);
+  }
+}
+
 /// Applies the loss function's correction to one residual block (residual r, tangent Jacobians per parameter
 /// block, empty for constant blocks), in place. Same algebra as Ceres' trust-region solver (Triggs et al.
 /// 2000).
@@ -285,16 +299,20 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
   // The column ranges (offset, size) of the blocks that residuals of other than two rows reach (IMU, prior): only
   // between those can H come out unsymmetric (addTwoRowProduct's mirror entries are the same products).
   std::vector<std::pair<int, int>> dense;
+  for (auto& [key, block] : blocks_) block.dense = false;
+  for (const Residual* res : used) {
+    if (res->cost->num_residuals() == 2) continue;
+    for (Block* b : blocksOf(*res))
+      if (!b->constant && !b->dense) {
+        b->dense = true;
+        dense.emplace_back(b->offset, b->tangent_size);
+      }
+  }
   for (const Residual* res : used) {
     const int nr = res->cost->num_residuals();
     const std::span<const BlockKey> keys = keysOf(*res);
     const std::span<Block* const> blocks = blocksOf(*res);
     const std::size_t nb = keys.size();
-    if (nr != 2)
-      for (const Block* b : blocks)
-        if (!b->constant && std::find(dense.begin(), dense.end(), std::make_pair(b->offset, b->tangent_size)) ==
-                                dense.end())
-          dense.emplace_back(b->offset, b->tangent_size);
     params.assign(nb, nullptr);
     jac_amb.resize(nb);
     jac_ptr.assign(nb, nullptr);
@@ -339,21 +357,26 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
       throw InputError("Marginaliser::marginalise: non-finite residual or Jacobian over " +
                        keyName(keys.front()));
     if (res->loss != nullptr) applyLoss(*res->loss, &r, &J);
-    // Block-wise accumulation: only the touched blocks of H and g change.
+    // Block-wise accumulation: only the touched blocks of H and g change. A two-row residual fills the lower block
+    // of two blocks that are not both dense by mirrorTwoRowBlocks below.
     for (std::size_t a = 0; a < nb; ++a) {
       if (J[a].size() == 0) continue;
       const int oa = blocks[a]->offset;
-      g.segment(oa, J[a].cols()).noalias() += J[a].transpose() * r;
+      if (nr == 2)  // as Eigen's product sums it (the two terms, then onto g), without its dispatch
+        for (Eigen::Index i = 0; i < J[a].cols(); ++i) g(oa + i) += J[a](0, i) * r(0) + J[a](1, i) * r(1);
+      else
+        g.segment(oa, J[a].cols()).noalias() += J[a].transpose() * r;
       for (std::size_t b = 0; b < nb; ++b) {
         if (J[b].size() == 0) continue;
         const int ob = blocks[b]->offset;
-        if (nr == 2)
-          addTwoRowProduct(J[a], J[b], oa, ob, &H);
-        else
+        if (nr != 2)
           H.block(oa, ob, J[a].cols(), J[b].cols()).noalias() += J[a].transpose() * J[b];
+        else if (oa <= ob || (blocks[a]->dense && blocks[b]->dense))
+          addTwoRowProduct(J[a], J[b], oa, ob, &H);
       }
     }
   }
+  mirrorTwoRowBlocks(dense, &H);
   symmetrise(dense, &H);
 
   // Stage 1: the decoupled blocks (H_PP block-diagonal).

@@ -113,17 +113,18 @@ void sampleRow(const cv::Mat& gray, const Sampling& g, int q, bool fast, std::ui
     row[c] = gray.data[static_cast<std::ptrdiff_t>(fy >> 16) * stride + (fx >> 16)];
 }
 
+#if defined(__SSE2__)
+// 16 x 0xFF, then 16 x 0: a load at kTailMask + 16 - k keeps the first k lanes.
+constexpr std::array<std::uint8_t, 32> kTailMask = {0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+                                                    0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF};
+#endif
+
 // Sum over i < n of |a[i] - b[i]|. With SSE2, 16 bytes at a time (PSADBW), reading up to 15 bytes past a + n and
 // b + n (masked out).
 std::int32_t rowSad(const std::uint8_t* a, const std::uint8_t* b, int n) {
   std::int32_t total = 0;
   int i = 0;
 #if defined(__SSE2__)
-  static const std::array<std::uint8_t, 32> kTailMask = [] {  // 16 x 0xFF, then 16 x 0
-    std::array<std::uint8_t, 32> m{};
-    for (int k = 0; k < 16; ++k) m[k] = 0xFF;
-    return m;
-  }();
   __m128i acc = _mm_setzero_si128();
   for (; i + 16 <= n; i += 16)
     acc = _mm_add_epi64(acc, _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i)),
@@ -141,23 +142,46 @@ std::int32_t rowSad(const std::uint8_t* a, const std::uint8_t* b, int n) {
   return total;
 }
 
+// Sum over i < n of a[i], as rowSad against zeros (PSADBW with a zero vector), reading up to 15 bytes past a + n.
+std::int32_t rowSum(const std::uint8_t* a, int n) {
+  std::int32_t total = 0;
+  int i = 0;
+#if defined(__SSE2__)
+  const __m128i zero = _mm_setzero_si128();
+  __m128i acc = zero;
+  for (; i + 16 <= n; i += 16)
+    acc = _mm_add_epi64(acc, _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i)), zero));
+  if (i < n) {
+    const __m128i mask = _mm_loadu_si128(reinterpret_cast<const __m128i*>(kTailMask.data() + 16 - (n - i)));
+    acc = _mm_add_epi64(acc, _mm_sad_epu8(_mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i)), mask),
+                                          zero));
+    i = n;
+  }
+  total = _mm_cvtsi128_si32(acc) + _mm_cvtsi128_si32(_mm_unpackhi_epi64(acc, acc));
+#endif
+  for (; i < n; ++i) total += a[i];
+  return total;
+}
+
 // Gradients in the patch frame are the projections LBD needs: g_perp = P(q+1, c) - P(q-1, c) (along n),
 // g_L = (P(q, c+1) - P(q, c-1)) / step (along d). Each row sums (g_perp > 0, -g_perp < 0, g_L > 0, -g_L < 0), as a
 // mean over its samples times the global weight. `fast`: the sums split by sign through
 // sum(max(g, 0)) = (sum|g| + sum g) / 2 and sum(max(-g, 0)) = (sum|g| - sum g) / 2, exact in integers: sum g is a
 // difference of two row sums (g_perp) or telescopes to four pixels (g_L), sum|g| a sum of absolute differences of two
-// byte rows.
+// byte rows; the first, a difference of the two rows' byte sums, each patch row's sum taken once.
 void rowSums(const Patch& patch, const Sampling& g, bool fast, const Weights& weights, RowSums* rows) {
   const int ns = g.ns;
   const float inv_step = 1.f / g.step;
+  std::array<std::int32_t, kPatchRows> byte_sums{};
+  if (fast)
+    for (int q = 0; q < kPatchRows; ++q) byte_sums[static_cast<std::size_t>(q)] = rowSum(patch[q] + 1, ns);
   for (int r = 0; r < kRows; ++r) {
     const std::uint8_t* up = patch[r];
     const std::uint8_t* mid = patch[r + 1];
     const std::uint8_t* down = patch[r + 2];
     std::int32_t b0 = 0, b1 = 0, b2 = 0, b3 = 0;
     if (fast) {
-      std::int32_t sum_p = 0;
-      for (int c = 1; c <= ns; ++c) sum_p += static_cast<std::int32_t>(down[c]) - static_cast<std::int32_t>(up[c]);
+      const std::int32_t sum_p = byte_sums[static_cast<std::size_t>(r + 2)] - byte_sums[static_cast<std::size_t>(r)];
       const std::int32_t sum_l = static_cast<std::int32_t>(mid[ns + 1]) + mid[ns] - mid[1] - mid[0];
       const std::int32_t abs_p = rowSad(down + 1, up + 1, ns), abs_l = rowSad(mid + 2, mid, ns);
       b0 = (abs_p + sum_p) / 2;
@@ -181,14 +205,29 @@ void rowSums(const Patch& patch, const Sampling& g, bool fast, const Weights& we
 }
 
 // The 72 floats from the row sums: band means and deviations, normalised, clamped and renormalised.
-std::array<float, kLbdFloats> bandsOf(const RowSums& rows, const LbdOptions& options, const Weights& weights) {
+// `fast`: the four sums of a row at once (SSE2: the same products and sums per lane, so the same floats).
+std::array<float, kLbdFloats> bandsOf(const RowSums& rows, const LbdOptions& options, const Weights& weights,
+                                      bool fast) {
   std::array<float, kLbdFloats> out{};
   // Band descriptors: weighted mean and standard deviation over the rows of bands j-1..j+1.
   for (int j = 0; j < kLbdBands; ++j) {
     const int r0 = std::max(0, (j - 1) * kLbdBandWidth), r1 = std::min(kRows, (j + 2) * kLbdBandWidth);
-    float mean[4] = {0, 0, 0, 0}, sq[4] = {0, 0, 0, 0};
+    alignas(16) float mean[4] = {0, 0, 0, 0}, sq[4] = {0, 0, 0, 0};
     const int cnt = r1 - r0;
-    for (int r = r0; r < r1; ++r) {
+    int r = r0;
+#if defined(__SSE2__)
+    if (fast) {
+      __m128 m4 = _mm_setzero_ps(), s4 = _mm_setzero_ps();
+      for (; r < r1; ++r) {
+        const __m128 v = _mm_mul_ps(_mm_set1_ps(weights.local[j][r]), _mm_loadu_ps(rows[r].data()));
+        m4 = _mm_add_ps(m4, v);
+        s4 = _mm_add_ps(s4, _mm_mul_ps(v, v));
+      }
+      _mm_store_ps(mean, m4);
+      _mm_store_ps(sq, s4);
+    }
+#endif
+    for (; r < r1; ++r) {
       const float wl = weights.local[j][r];
       for (int c = 0; c < 4; ++c) {
         const float v = wl * rows[r][c];
@@ -249,7 +288,7 @@ std::array<float, kLbdFloats> lbdFloat(const cv::Mat& gray, const LbdOptions& op
   for (int q = 0; q < kPatchRows; ++q) sampleRow(gray, g, q, fast, patch[q]);
   RowSums rows;
   rowSums(patch, g, fast, kWeights, &rows);
-  return bandsOf(rows, options, kWeights);
+  return bandsOf(rows, options, kWeights, fast);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <utility>
 
 #include "linnet/core/cpu_clock.h"
 #include "linnet/core/error.h"
@@ -160,15 +161,20 @@ void StreamRun::addImu(Timestamp t, const Vec3& acc, const Vec3& gyr) {
 }
 
 bool StreamRun::addFrame(Timestamp t, const cv::Mat& left, const cv::Mat& right, double load_cpu_s) {
+  cv::Mat l = left, r = right;  // headers shared with the caller's: the System copies their pixels
+  return addFrame(t, std::move(l), std::move(r), load_cpu_s);
+}
+
+bool StreamRun::addFrame(Timestamp t, cv::Mat&& left, cv::Mat&& right, double load_cpu_s) {
   if (finished_) throw UsageError("StreamRun: addFrame after finish");
   pace(t);
   summary_.image_load_cpu_s += load_cpu_s;
   bool accepted = false;
   if (config_.stereo) {
     if (right.empty()) throw UsageError("StreamRun: a stereo config needs the right image of every frame");
-    accepted = system_->addStereo(t, left, right);
+    accepted = system_->addStereo(t, std::move(left), std::move(right));
   } else {
-    accepted = system_->addMono(t, left);
+    accepted = system_->addMono(t, std::move(left));
   }
   if (summary_.frames == 0) summary_.first_frame_t = t;
   summary_.last_frame_t = t;
@@ -257,7 +263,7 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
       if (covers) break;
     }
     const double load0 = threadCpuMs();
-    const cv::Mat left = EurocDataset::loadImage(f.left_path);
+    cv::Mat left = EurocDataset::loadImage(f.left_path);
     cv::Mat right;
     if (config.stereo) {
       if (f.right_path.empty()) throw InputError(f.left_path, 0, "no right image pairs with this left image");
@@ -265,7 +271,7 @@ RunSummary runEuroc(const std::string& dataset_path, const Config& config, const
     }
     checkImageSize(left, config.cam0, f.left_path, "cam0");
     if (config.stereo) checkImageSize(right, config.cam1, f.right_path, "cam1");
-    run.addFrame(f.t, left, right, 1e-3 * (threadCpuMs() - load0));
+    run.addFrame(f.t, std::move(left), std::move(right), 1e-3 * (threadCpuMs() - load0));
     if (options.progress) options.progress(run.frames(), total);
   }
   // A few IMU samples past the last frame, so it is covered.

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include <sched.h>
 
@@ -336,13 +337,23 @@ void System::addImu(Timestamp t, const Vec3& acc, const Vec3& gyr) {
 }
 
 bool System::addStereo(Timestamp t, const cv::Mat& left, const cv::Mat& right) {
-  if (!config_.stereo) throw UsageError("addStereo on a monocular System (config.stereo = false); use addMono");
-  return addFrame(t, left, right);
+  cv::Mat l = left, r = right;  // headers shared with the caller's: addFrame copies their pixels
+  return addStereo(t, std::move(l), std::move(r));
 }
 
 bool System::addMono(Timestamp t, const cv::Mat& image) {
+  cv::Mat m = image;
+  return addMono(t, std::move(m));
+}
+
+bool System::addStereo(Timestamp t, cv::Mat&& left, cv::Mat&& right) {
+  if (!config_.stereo) throw UsageError("addStereo on a monocular System (config.stereo = false); use addMono");
+  return addFrame(t, std::move(left), std::move(right));
+}
+
+bool System::addMono(Timestamp t, cv::Mat&& image) {
   if (config_.stereo) throw UsageError("addMono on a stereo System (config.stereo = true); use addStereo");
-  return addFrame(t, image, cv::Mat());
+  return addFrame(t, std::move(image), cv::Mat());
 }
 
 namespace {
@@ -367,19 +378,25 @@ cv::Mat toGray(const cv::Mat& image, const CameraCalibration& calib, const char*
 
 }  // namespace
 
-bool System::addFrame(Timestamp t, const cv::Mat& left, const cv::Mat& right) {
+bool System::addFrame(Timestamp t, cv::Mat&& left, cv::Mat&& right) {
   rethrowWorkerError();
   if (impl_->finished) throw UsageError("add image after finish()");
   if (t <= impl_->last_frame_t)
     throw UsageError("image time stamps must increase strictly (got " + std::to_string(t) + " ns after " +
                      std::to_string(impl_->last_frame_t) + " ns)");
+  // The front-end may run after this call returns: it must own its pixels. An image whose buffer only this header
+  // references is already owned (the header is released below); any other is copied. (A cv::Mat wrapping the
+  // caller's memory has no reference count: copied.)
+  const auto alone = [](const cv::Mat& m) { return m.u != nullptr && m.u->refcount == 1; };
+  const bool own_left = alone(left), own_right = alone(right);
   FrameInput in;
   in.t = t;
   in.left = toGray(left, config_.cam0, "left");
   if (config_.stereo) in.right = toGray(right, config_.cam1, "right");
-  // The front-end may run after this call returns: it must own its pixels.
-  if (in.left.data == left.data) in.left = left.clone();
-  if (config_.stereo && in.right.data == right.data) in.right = right.clone();
+  if (in.left.data == left.data && !own_left) in.left = left.clone();
+  if (config_.stereo && in.right.data == right.data && !own_right) in.right = right.clone();
+  left.release();
+  right.release();
   impl_->last_frame_t = t;
 
   if (!config_.pipeline.blocking) {

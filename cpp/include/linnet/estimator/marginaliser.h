@@ -119,6 +119,7 @@ class Marginaliser {
     // the joint system (-1: not in it).
     int drop_index = -1;
     int offset = -1;
+    bool dense = false;  // reached by a residual of other than two rows (IMU, prior): see marginalise()
   };
   struct Residual {
     std::shared_ptr<ceres::CostFunction> cost;

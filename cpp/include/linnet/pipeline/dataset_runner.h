@@ -81,6 +81,8 @@ class StreamRun {
   /// A frame: `right` empty for a monocular config. `load_cpu_s` is the CPU time the caller spent reading and
   /// decoding it (reported as image_load_cpu_s). Returns false if the System dropped it (real-time mode).
   bool addFrame(Timestamp t, const cv::Mat& left, const cv::Mat& right, double load_cpu_s = 0.0);
+  /// The same, handing the images over (System::addStereo's && overload: a decoded image is not copied again).
+  bool addFrame(Timestamp t, cv::Mat&& left, cv::Mat&& right, double load_cpu_s = 0.0);
   /// Processes everything queued and returns the summary (results, map, timings). Once only.
   RunSummary finish();
   int frames() const { return summary_.frames; }

@@ -75,6 +75,11 @@ class System {
   bool addStereo(Timestamp t, const cv::Mat& left, const cv::Mat& right);
   /// A monocular image (config.stereo must be false).
   bool addMono(Timestamp t, const cv::Mat& image);
+  /// The same, handing the images over (they are left empty). The const& overloads copy the pixels, as the caller
+  /// may write into them once the call returns; a handed-over gray image that no other cv::Mat shares (a freshly
+  /// decoded one) is kept as it is.
+  bool addStereo(Timestamp t, cv::Mat&& left, cv::Mat&& right);
+  bool addMono(Timestamp t, cv::Mat&& image);
 
   /// Called once per processed frame, in time order, on the estimator thread. Set before adding data.
   void setCallback(std::function<void(const FrameResult&)> callback);
@@ -96,7 +101,7 @@ class System {
 
  private:
   struct Impl;
-  bool addFrame(Timestamp t, const cv::Mat& left, const cv::Mat& right);
+  bool addFrame(Timestamp t, cv::Mat&& left, cv::Mat&& right);
   void rethrowWorkerError();
 
   Config config_;
