@@ -43,11 +43,17 @@ bool evaluateThroughTangent(const TangentJacobians& f, const std::vector<std::in
 const TangentJacobians* TangentJacobiansCache::of(const ceres::CostFunction* cost) {
   if (cost == nullptr) return nullptr;
   const std::type_info& type = typeid(*cost);
+  const auto answer = [&](const Entry& e) {
+    return e.is_tangent ? reinterpret_cast<const TangentJacobians*>(reinterpret_cast<const char*>(cost) + e.offset)
+                        : nullptr;
+  };
+  // By the type_info object first: one type's typeid is one object within a binary, and a mismatch by name costs a
+  // string comparison of the mangled names (each residual of a solve asks). Then by name, for a type whose typeid
+  // another shared library gives as another object.
   for (const Entry& e : entries_)
-    if (*e.type == type)
-      return e.is_tangent
-                 ? reinterpret_cast<const TangentJacobians*>(reinterpret_cast<const char*>(cost) + e.offset)
-                 : nullptr;
+    if (e.type == &type) return answer(e);
+  for (const Entry& e : entries_)
+    if (*e.type == type) return answer(e);
   const auto* tangent = dynamic_cast<const TangentJacobians*>(cost);
   entries_.push_back({&type,
                       tangent != nullptr
