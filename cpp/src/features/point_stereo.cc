@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "linnet/core/error.h"
+#include "linnet/core/simd_clones.h"
 #include "linnet/features/klt_round_trip.h"
 
 namespace linnet {
@@ -27,8 +28,8 @@ int numLevels(const std::vector<cv::Mat>& pyr) {
 }
 
 // Zero-mean, unit-norm patch of (2h+1)^2 pixels at an integer centre into out (resized by the caller); false when
-// it leaves the image or is flat.
-bool patch(const cv::Mat& img, int cx, int cy, int h, float* out) {
+// it leaves the image or is flat. Built for AVX2 as well (the same sums and the same float operations per pixel).
+LINNET_SIMD_CLONES bool patch(const cv::Mat& img, int cx, int cy, int h, float* out) {
   if (cx - h < 0 || cy - h < 0 || cx + h >= img.cols || cy + h >= img.rows) return false;
   const int side = 2 * h + 1, count = side * side;
   int sum = 0, sum2 = 0;
@@ -52,7 +53,7 @@ bool patch(const cv::Mat& img, int cx, int cy, int h, float* out) {
 
 // Bilinear samples of the (2h+1)^2 patch centred on c (sub-pixel; pixels beyond the border replicated), as
 // cv::getRectSubPix places them: its top-left sample at c - (h, h).
-void samplePatch(const cv::Mat& img, const cv::Point2f& c, int h, double* out) {
+LINNET_SIMD_CLONES void samplePatch(const cv::Mat& img, const cv::Point2f& c, int h, double* out) {
   const int side = 2 * h + 1;
   const float x0 = c.x - static_cast<float>(h), y0 = c.y - static_cast<float>(h);
   const int ix = cvFloor(x0), iy = cvFloor(y0);
