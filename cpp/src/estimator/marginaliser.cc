@@ -72,31 +72,25 @@ void addTwoRowProduct(const Eigen::MatrixXd& Ja, const Eigen::MatrixXd& Jb, int 
   }
 }
 
-/// H = (H + H^T) / 2 where H may be unsymmetric: the entries between the column ranges `dense` (offset, size); the
-/// others are symmetric already. Each pair is averaged from its two old values.
+/// Makes H symmetric from what was summed into it. Between two column ranges of `dense` (offset, size), which residuals
+/// of other than two rows reach (IMU, prior), the two entries of a pair may differ: each pair is averaged from its two
+/// old values. Everywhere else only the two-row residuals sum, into the upper entry alone (the lower one would take
+/// the same products, commuted, in the same order): the lower entry takes its value.
 void symmetrise(const std::vector<std::pair<int, int>>& dense, Eigen::MatrixXd* H) {
-  for (const auto& [oa, na] : dense)
-    for (const auto& [ob, nb] : dense)
-      for (int j = ob; j < ob + nb; ++j)
-        for (int i = oa; i < oa + na; ++i) {
-          if (i >= j) continue;  // each pair once, from its upper entry; the diagonal stays
-          const double v = 0.5 * ((*H)(i, j) + (*H)(j, i));
-          (*H)(i, j) = v;
-          (*H)(j, i) = v;
-        }
-}
-
-/// H(i, j) = H(j, i) for i > j, except where both columns belong to `dense` ranges (offset, size): the two-row
-/// residuals sum only into the upper block of a pair of blocks that are not both dense (their lower block would take
-/// the same sums: each entry's products are the same, commuted, in the same order), and nothing else reaches it.
-void mirrorTwoRowBlocks(const std::vector<std::pair<int, int>>& dense, Eigen::MatrixXd* H) {
   const Eigen::Index n = H->rows();
   std::vector<unsigned char> in_dense(static_cast<std::size_t>(n), 0);
   for (const auto& [o, s] : dense) std::fill_n(in_dense.begin() + o, s, 1);
   for (Eigen::Index j = 0; j < n; ++j) {
     const bool dj = in_dense[static_cast<std::size_t>(j)] != 0;
-    for (Eigen::Index i = j + 1; i < n; ++i)
-      if (!(dj && in_dense[static_cast<std::size_t>(i)])) (*H)(i, j) = (*H)(j, i);
+    for (Eigen::Index i = j + 1; i < n; ++i) {
+      if (dj && in_dense[static_cast<std::size_t>(i)]) {
+        const double v = 0.5 * ((*H)(j, i) + (*H)(i, j));
+        (*H)(j, i) = v;
+        (*H)(i, j) = v;
+      } else {
+        (*H)(i, j) = (*H)(j, i);
+      }
+    }
   }
 }
 
@@ -358,7 +352,7 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
                        keyName(keys.front()));
     if (res->loss != nullptr) applyLoss(*res->loss, &r, &J);
     // Block-wise accumulation: only the touched blocks of H and g change. A two-row residual fills the lower block
-    // of two blocks that are not both dense by mirrorTwoRowBlocks below.
+    // of two blocks that are not both dense by symmetrise below.
     for (std::size_t a = 0; a < nb; ++a) {
       if (J[a].size() == 0) continue;
       const int oa = blocks[a]->offset;
@@ -376,7 +370,6 @@ std::shared_ptr<const MarginalizationPrior> Marginaliser::marginalise(const std:
       }
     }
   }
-  mirrorTwoRowBlocks(dense, &H);
   symmetrise(dense, &H);
 
   // Stage 1: the decoupled blocks (H_PP block-diagonal).

@@ -142,25 +142,10 @@ std::int32_t rowSad(const std::uint8_t* a, const std::uint8_t* b, int n) {
   return total;
 }
 
-// Sum over i < n of a[i], as rowSad against zeros (PSADBW with a zero vector), reading up to 15 bytes past a + n.
+// Sum over i < n of a[i] (n <= 1024, the largest max_samples): rowSad against a row of zeros.
 std::int32_t rowSum(const std::uint8_t* a, int n) {
-  std::int32_t total = 0;
-  int i = 0;
-#if defined(__SSE2__)
-  const __m128i zero = _mm_setzero_si128();
-  __m128i acc = zero;
-  for (; i + 16 <= n; i += 16)
-    acc = _mm_add_epi64(acc, _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i)), zero));
-  if (i < n) {
-    const __m128i mask = _mm_loadu_si128(reinterpret_cast<const __m128i*>(kTailMask.data() + 16 - (n - i)));
-    acc = _mm_add_epi64(acc, _mm_sad_epu8(_mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i)), mask),
-                                          zero));
-    i = n;
-  }
-  total = _mm_cvtsi128_si32(acc) + _mm_cvtsi128_si32(_mm_unpackhi_epi64(acc, acc));
-#endif
-  for (; i < n; ++i) total += a[i];
-  return total;
+  static constexpr std::array<std::uint8_t, 1024 + kPatchSlack> kZeros{};  // rowSad reads up to 15 bytes past n
+  return rowSad(a, kZeros.data(), n);
 }
 
 // Gradients in the patch frame are the projections LBD needs: g_perp = P(q+1, c) - P(q-1, c) (along n),
