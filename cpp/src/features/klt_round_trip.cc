@@ -1,7 +1,7 @@
 // Pyramidal KLT with a forward-backward check (see klt_round_trip.h).
 #include "linnet/features/klt_round_trip.h"
 
-#include <opencv2/video/tracking.hpp>
+#include "linnet/features/lucas_kanade.h"
 
 namespace linnet {
 
@@ -12,9 +12,13 @@ std::vector<unsigned char> kltRoundTrip(const std::vector<cv::Mat>& pyr_a, const
   std::vector<unsigned char> ok(from.size(), 0);
   if (from.empty()) return ok;
   std::vector<unsigned char> st_f, st_b;
-  // The KLT error output is not used: cv::noArray() spares OpenCV computing it.
-  cv::calcOpticalFlowPyrLK(pyr_a, pyr_b, from, *to, st_f, cv::noArray(), p.window, p.levels, p.criteria,
-                           cv::OPTFLOW_USE_INITIAL_FLOW, p.min_eigen);
+  LucasKanadeParams lk;
+  lk.window = p.window;
+  lk.max_level = p.levels;
+  lk.max_iterations = p.criteria.maxCount;
+  lk.epsilon = p.criteria.epsilon;
+  lk.min_eigen = p.min_eigen;
+  lucasKanade(pyr_a, pyr_b, from, to, &st_f, lk);
   // The backward pass starts at the original positions, only for the points sent to it.
   std::vector<cv::Point2f> fwd, back;
   std::vector<std::size_t> fwd_idx;
@@ -28,8 +32,8 @@ std::vector<unsigned char> kltRoundTrip(const std::vector<cv::Mat>& pyr_a, const
     back.push_back(from[k]);
   }
   if (fwd.empty()) return ok;
-  cv::calcOpticalFlowPyrLK(pyr_b, pyr_a, fwd, back, st_b, cv::noArray(), p.window, p.back_levels, p.criteria,
-                           cv::OPTFLOW_USE_INITIAL_FLOW, p.min_eigen);
+  lk.max_level = p.back_levels;
+  lucasKanade(pyr_b, pyr_a, fwd, &back, &st_b, lk);
   const double t2 = p.threshold_px * p.threshold_px;
   for (std::size_t j = 0; j < fwd_idx.size(); ++j) {
     const cv::Point2f d = back[j] - from[fwd_idx[j]];

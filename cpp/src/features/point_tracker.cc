@@ -85,7 +85,8 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
     clahe_->apply(left_in, left);
   }
   const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
-  cv::buildOpticalFlowPyramid(left, pyr_cur_, win, opt_.klt_pyramid_levels, true, cv::BORDER_REFLECT_101,
+  // Pyramids without derivative images: lucasKanade computes the derivatives of the windows it reads.
+  cv::buildOpticalFlowPyramid(left, pyr_cur_, win, opt_.klt_pyramid_levels, false, cv::BORDER_REFLECT_101,
                               cv::BORDER_CONSTANT, false);
 
   if (has_last_ && !tracks_.empty()) trackTemporal(toSeconds(t - last_t_));
@@ -332,7 +333,7 @@ void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool
     sr = cv::Mat();
     clahe_->apply(left, sl);
     clahe_->apply(right_in, sr);
-    cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, stereo_levels, true, cv::BORDER_REFLECT_101,
+    cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, stereo_levels, false, cv::BORDER_REFLECT_101,
                                 cv::BORDER_CONSTANT, false);
     pyr_left = &pyr_left_stereo_;
   } else if (opt_.clahe) {
@@ -352,7 +353,7 @@ void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool
       sr = adjusted;
     }
   }
-  cv::buildOpticalFlowPyramid(sr, pyr_right_, win, stereo_levels, true, cv::BORDER_REFLECT_101,
+  cv::buildOpticalFlowPyramid(sr, pyr_right_, win, stereo_levels, false, cv::BORDER_REFLECT_101,
                               cv::BORDER_CONSTANT, false);
   matchStereo(*pyr_left, prior_shortcut);
 }
