@@ -128,15 +128,18 @@ void residualPlain(const U8* img, std::ptrdiff_t img_step, WindowShape shape, We
 
 namespace {
 
+// The AVX2 kernels' helpers, inlined into them (a call would pass their vectors through memory).
+#define LINNET_LK_AVX2_HELPER __attribute__((target("avx2"), always_inline)) inline
+
 // Pairs (a, b) of int16 for _mm256_madd_epi16: a in the low half of each 32-bit lane.
-__attribute__((target("avx2"))) __m256i weightPair(int a, int b) {
+LINNET_LK_AVX2_HELPER __m256i weightPair(int a, int b) {
   return _mm256_set1_epi32(static_cast<int>((static_cast<unsigned>(b) << 16) | (static_cast<unsigned>(a) & 0xffffu)));
 }
 
 // 16 samples x0..x0+15 of two image rows, each (r[x] w_0 + r[x + 1] w_1) per row, rounded off by `shift` bits, as
 // int16 in their natural order. a0, a1: the rows' samples at x and x + 1 (as int16), likewise b0, b1.
-__attribute__((target("avx2"))) __m256i bilinear16(__m256i a0, __m256i a1, __m256i b0, __m256i b1, __m256i wa,
-                                                   __m256i wb, __m256i round, int shift) {
+LINNET_LK_AVX2_HELPER __m256i bilinear16(__m256i a0, __m256i a1, __m256i b0, __m256i b1, __m256i wa, __m256i wb,
+                                         __m256i round, int shift) {
   __m256i lo = _mm256_add_epi32(_mm256_madd_epi16(_mm256_unpacklo_epi16(a0, a1), wa),
                                 _mm256_madd_epi16(_mm256_unpacklo_epi16(b0, b1), wb));
   __m256i hi = _mm256_add_epi32(_mm256_madd_epi16(_mm256_unpackhi_epi16(a0, a1), wa),
@@ -146,7 +149,7 @@ __attribute__((target("avx2"))) __m256i bilinear16(__m256i a0, __m256i a1, __m25
   return _mm256_packs_epi32(lo, hi);  // lanes 0-3, 4-7 | 8-11, 12-15: the natural order
 }
 
-__attribute__((target("avx2"))) __m256i loadBytes16(const U8* p) {
+LINNET_LK_AVX2_HELPER __m256i loadBytes16(const U8* p) {
   return _mm256_cvtepu8_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
 }
 
@@ -156,8 +159,7 @@ struct Derivatives16 {
   __m256i dx, dy, dx1, dy1;
 };
 
-__attribute__((target("avx2"))) Derivatives16 scharr16(const U8* up, const U8* mid, const U8* dn, __m256i in0,
-                                                       __m256i in1) {
+LINNET_LK_AVX2_HELPER Derivatives16 scharr16(const U8* up, const U8* mid, const U8* dn, __m256i in0, __m256i in1) {
   const __m256i three = _mm256_set1_epi16(3), ten = _mm256_set1_epi16(10);
   __m256i across[4], along[4];  // offsets -1, 0, 1, 2
   for (int o = 0; o < 4; ++o) {
@@ -178,8 +180,8 @@ __attribute__((target("avx2"))) Derivatives16 scharr16(const U8* up, const U8* m
 }
 
 // The derivatives of chunk c of window row j (0 on rows outside the image).
-__attribute__((target("avx2"))) Derivatives16 windowRowDerivatives(const U8* img, std::ptrdiff_t img_step, int j, int c,
-                                                                   const WindowPlace& pl, __m256i in0, __m256i in1) {
+LINNET_LK_AVX2_HELPER Derivatives16 windowRowDerivatives(const U8* img, std::ptrdiff_t img_step, int j, int c,
+                                                         const WindowPlace& pl, __m256i in0, __m256i in1) {
   const int Y = pl.y + j;
   if (Y < 0 || Y >= pl.rows) {
     const __m256i z = _mm256_setzero_si256();
@@ -190,7 +192,7 @@ __attribute__((target("avx2"))) Derivatives16 windowRowDerivatives(const U8* img
 }
 
 // Lanes k of 16 whose column x + k lies in [0, cols).
-__attribute__((target("avx2"))) __m256i columnsInside(int x, int cols) {
+LINNET_LK_AVX2_HELPER __m256i columnsInside(int x, int cols) {
   const __m256i c = _mm256_add_epi16(_mm256_set1_epi16(static_cast<I16>(x)),
                                      _mm256_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15));
   return _mm256_and_si256(_mm256_cmpgt_epi16(c, _mm256_set1_epi16(-1)),
@@ -198,7 +200,7 @@ __attribute__((target("avx2"))) __m256i columnsInside(int x, int cols) {
 }
 
 // Sample k, then k + 4, of a block of 8 int16 (the low or high half of v) into the four float lanes of *q.
-__attribute__((target("avx2"))) void addSquares(__m128i u, __m128i v, __m128* q) {
+LINNET_LK_AVX2_HELPER void addSquares(__m128i u, __m128i v, __m128* q) {
   const __m256 fu = _mm256_cvtepi32_ps(_mm256_cvtepi16_epi32(u));
   const __m256 fv = _mm256_cvtepi32_ps(_mm256_cvtepi16_epi32(v));
   const __m256 p = _mm256_mul_ps(fu, fv);  // exact: |products| < 2^24
@@ -215,11 +217,11 @@ constexpr int kExactRows = 60;
 constexpr std::int64_t kExactLimit = std::int64_t{1} << 24;
 
 // Lanes j of a group of 8 with j < n set.
-__attribute__((target("avx2"))) __m256i firstLanes(int n) {
+LINNET_LK_AVX2_HELPER __m256i firstLanes(int n) {
   return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
 }
 
-__attribute__((target("avx2"))) std::int64_t laneSum(__m256i v) {
+LINNET_LK_AVX2_HELPER std::int64_t laneSum(__m256i v) {
   alignas(32) I32 l[8];
   _mm256_store_si256(reinterpret_cast<__m256i*>(l), v);
   std::int64_t s = 0;
