@@ -13,6 +13,7 @@
 
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
+#include "linnet/features/image_pyramid.h"
 #include "linnet/features/klt_round_trip.h"
 #include "linnet/features/point_detection.h"
 #include "linnet/features/point_ransac.h"
@@ -86,8 +87,7 @@ void PointTracker::track(Timestamp t, const cv::Mat& left_in, const cv::Mat& rig
   }
   const cv::Size win(opt_.klt_window_px, opt_.klt_window_px);
   // Pyramids without derivative images: lucasKanade computes the derivatives of the windows it reads.
-  cv::buildOpticalFlowPyramid(left, pyr_cur_, win, opt_.klt_pyramid_levels, false, cv::BORDER_REFLECT_101,
-                              cv::BORDER_CONSTANT, false);
+  buildPyramid(left, win, opt_.klt_pyramid_levels, &pyr_cur_);
 
   if (has_last_ && !tracks_.empty()) trackTemporal(toSeconds(t - last_t_));
   replenish(left);
@@ -333,8 +333,7 @@ void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool
     sr = cv::Mat();
     clahe_->apply(left, sl);
     clahe_->apply(right_in, sr);
-    cv::buildOpticalFlowPyramid(sl, pyr_left_stereo_, win, stereo_levels, false, cv::BORDER_REFLECT_101,
-                                cv::BORDER_CONSTANT, false);
+    buildPyramid(sl, win, stereo_levels, &pyr_left_stereo_);
     pyr_left = &pyr_left_stereo_;
   } else if (opt_.clahe) {
     sr = cv::Mat();
@@ -353,8 +352,7 @@ void PointTracker::stereoPass(const cv::Mat& left, const cv::Mat& right_in, bool
       sr = adjusted;
     }
   }
-  cv::buildOpticalFlowPyramid(sr, pyr_right_, win, stereo_levels, false, cv::BORDER_REFLECT_101,
-                              cv::BORDER_CONSTANT, false);
+  buildPyramid(sr, win, stereo_levels, &pyr_right_);
   matchStereo(*pyr_left, prior_shortcut);
 }
 
