@@ -15,7 +15,8 @@ namespace linnet {
 
 namespace {
 
-// Level `lvl` image of a cv::buildOpticalFlowPyramid result (interleaved with derivatives when those were built).
+// Level `lvl` image of a buildPyramid or cv::buildOpticalFlowPyramid result (interleaved with derivatives when those
+// were built).
 const cv::Mat& levelImage(const std::vector<cv::Mat>& pyr, int lvl) {
   const bool with_deriv = pyr.size() >= 2 && pyr[1].type() != pyr[0].type();
   const std::size_t idx = static_cast<std::size_t>(with_deriv ? 2 * lvl : lvl);

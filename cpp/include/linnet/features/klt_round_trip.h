@@ -11,7 +11,7 @@ namespace linnet {
 struct KltRoundTripParams {
   cv::Size window{15, 15};        // KLT window, pixels
   cv::TermCriteria criteria;      // per-level termination
-  double min_eigen = 1e-4;        // cv::calcOpticalFlowPyrLK minEigThreshold
+  double min_eigen = 1e-4;        // smallest gradient eigenvalue per pixel (cv::calcOpticalFlowPyrLK minEigThreshold)
   int levels = 3;                 // forward pass: pyramid levels above full resolution
   int back_levels = 3;            // backward pass: pyramid levels above full resolution
   double threshold_px = 1.0;      // largest distance of the backward result from the start point, pixels
@@ -38,7 +38,8 @@ enum class RoundTrip { kDrop, kKeep, kCheck };
 /// forward results. `decide` (called with a point's index and its forward result, only for points the forward pass
 /// kept) chooses what follows; the points it sends to the check are tracked back from their results to `from`'s
 /// positions and kept when they end within threshold_px. Returns one flag per point (1: kept). The pyramids come
-/// from cv::buildOpticalFlowPyramid; KLT treats every point alone, so a point's result does not depend on the others.
+/// from buildPyramid or cv::buildOpticalFlowPyramid (derivative images, if any, are not read); KLT treats every point
+/// alone, so a point's result does not depend on the others.
 std::vector<unsigned char> kltRoundTrip(const std::vector<cv::Mat>& pyr_a, const std::vector<cv::Mat>& pyr_b,
                                         const std::vector<cv::Point2f>& from, std::vector<cv::Point2f>* to,
                                         const KltRoundTripParams& params,

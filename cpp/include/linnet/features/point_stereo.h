@@ -18,7 +18,7 @@ struct StereoPointParams {
   int klt_levels = 3;                 // levels of the given pyramids above full resolution
   int klt_max_iterations = 30;
   double klt_epsilon = 0.01;          // pixels
-  double klt_min_eigen = 1e-4;        // cv::calcOpticalFlowPyrLK minEigThreshold (flat patches are lost)
+  double klt_min_eigen = 1e-4;        // KLT's smallest gradient eigenvalue per pixel (flat patches are lost)
   int search_level = 1;               // pyramid level of the epipolar search (0 = full resolution)
   int search_half_patch = 3;          // ZNCC patch half size at the search level, pixels
   double search_min_depth_m = 0.3;    // the search covers depths from here to infinity, metres
@@ -58,10 +58,10 @@ struct StereoPointStats {
 /// deviation below 1e-3 grey levels). h in [0, 16].
 double subpixelZncc(const cv::Mat& img0, const cv::Point2f& c0, const cv::Mat& img1, const cv::Point2f& c1, int h);
 
-/// Matches cam0 points into cam1. pyr0 / pyr1: pyramids of cam0 / cam1 from cv::buildOpticalFlowPyramid (with
-/// derivatives). px0 / uv0: the points in cam0 (pixels / normalised). prior (optional, same size, may hold NaN for
-/// "none"): an expected cam1 pixel per point (e.g. last frame's match moved by the point's flow); points with a prior
-/// skip the search. Deterministic.
+/// Matches cam0 points into cam1. pyr0 / pyr1: pyramids of cam0 / cam1 from buildPyramid (or
+/// cv::buildOpticalFlowPyramid, with or without derivatives). px0 / uv0: the points in cam0 (pixels / normalised).
+/// prior (optional, same size, may hold NaN for "none"): an expected cam1 pixel per point (e.g. last frame's match
+/// moved by the point's flow); points with a prior skip the search. Deterministic.
 std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr0, const std::vector<cv::Mat>& pyr1,
                                                  const CameraModel& cam0, const CameraModel& cam1,
                                                  const Pose& T_C1_C0, const std::vector<cv::Point2f>& px0,

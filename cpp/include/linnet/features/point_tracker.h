@@ -27,7 +27,7 @@ namespace linnet {
 struct PointTrackerOptions {
   int max_points = 150;                  // tracked features per frame in cam0
   double min_distance_px = 30.0;         // minimum distance between features, pixels
-  // KLT (pyramidal Lucas-Kanade, cv::calcOpticalFlowPyrLK)
+  // KLT (pyramidal Lucas-Kanade: lucasKanade, the arithmetic of cv::calcOpticalFlowPyrLK)
   int klt_window_px = 15;                // window side, pixels
   int klt_pyramid_levels = 3;            // levels above the full-resolution image
   int klt_max_iterations = 30;           // per level
