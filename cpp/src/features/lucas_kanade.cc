@@ -218,8 +218,8 @@ void lucasKanade(const std::vector<cv::Mat>& prev, const std::vector<cv::Mat>& n
   const float min_eig = static_cast<float>(p.min_eigen);
 
   Buffers buf;
-  if (const lk::TemplateKernel k = lk::templateAvx2()) buf.sample_template = k;
-  if (const lk::ResidualKernel k = lk::residualAvx2()) buf.residual = k;
+  if (const lk::TemplateKernel k = lk::templateAvx2(); k != nullptr && p.simd) buf.sample_template = k;
+  if (const lk::ResidualKernel k = lk::residualAvx2(); k != nullptr && p.simd) buf.residual = k;
   buf.shape.rows = p.window.height;
   buf.shape.width = p.window.width;
   buf.shape.chunks = (p.window.width + lk::kLanes - 1) / lk::kLanes;

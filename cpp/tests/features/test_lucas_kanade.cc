@@ -63,7 +63,7 @@ std::vector<cv::Point2f> points(int seed, const cv::Size& size) {
 bool sameBits(float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; }
 
 void expectSameAsOpenCv(int seed, int window, int levels, int iterations, double eps, bool initial_offset,
-                        bool derivatives = true) {
+                        bool derivatives = true, bool simd = true) {
   cv::Mat a, b;
   imagePair(seed, &a, &b);
   const cv::Size win(window, window);
@@ -85,6 +85,7 @@ void expectSameAsOpenCv(int seed, int window, int levels, int iterations, double
   p.max_iterations = iterations;
   p.epsilon = eps;
   p.min_eigen = 1e-4;
+  p.simd = simd;
   lucasKanade(pa, pb, from, &ours, &st_ours, p);
   ASSERT_EQ(ours.size(), ref.size());
   int tracked = 0;
@@ -105,6 +106,12 @@ TEST(LucasKanade, EqualsOpenCvBitForBitWithTheDefaultWindow) {
 TEST(LucasKanade, EqualsOpenCvBitForBitOnPyramidsWithoutDerivatives) {
   expectSameAsOpenCv(10, 15, 3, 30, 0.01, true, false);
   expectSameAsOpenCv(11, 21, 2, 30, 0.01, false, false);
+}
+
+// The plain kernels (what a CPU without AVX2 runs) end to end.
+TEST(LucasKanade, PlainKernelsEqualOpenCvBitForBit) {
+  expectSameAsOpenCv(12, 15, 3, 30, 0.01, true, false, false);
+  expectSameAsOpenCv(13, 11, 2, 30, 0.01, false, true, false);
 }
 
 TEST(LucasKanade, EqualsOpenCvBitForBitWithOtherWindowsAndLevels) {

@@ -15,6 +15,7 @@ struct LucasKanadeParams {
   int max_iterations = 30;   // per level, clamped to [0, 100]
   double epsilon = 0.01;     // a level stops when its update is at most this long, pixels (clamped to [0, 10])
   double min_eigen = 1e-4;   // points whose window's gradient matrix has a smaller eigenvalue per pixel are lost
+  bool simd = true;          // the AVX2 kernels where the CPU has them (false: the plain ones; the same results)
 };
 
 /// Tracks `from` (pyramid `prev`) into pyramid `next`, each point starting at its entry of *to (the initial flow);
