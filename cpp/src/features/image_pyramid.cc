@@ -1,6 +1,7 @@
 // Image pyramids for KLT (see image_pyramid.h).
 #include "linnet/features/image_pyramid.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -98,6 +99,22 @@ int buildPyramid(const cv::Mat& img, cv::Size window, int max_level, std::vector
     }
   }
   return max_level;
+}
+
+PyramidLayout pyramidLayout(const std::vector<cv::Mat>& pyramid) {
+  PyramidLayout l;
+  l.levels = static_cast<int>(pyramid.size());
+  if (l.levels % 2 == 0 && l.levels > 0 && pyramid[1].type() == CV_16SC2 && pyramid[0].channels() == 1) {
+    l.step = 2;
+    l.levels /= 2;
+  }
+  return l;
+}
+
+const cv::Mat& pyramidLevel(const std::vector<cv::Mat>& pyramid, int level) {
+  const PyramidLayout l = pyramidLayout(pyramid);
+  if (l.levels == 0) throw UsageError("pyramidLevel: the pyramid is empty");
+  return pyramid[static_cast<std::size_t>(std::clamp(level, 0, l.levels - 1) * l.step)];
 }
 
 }  // namespace linnet

@@ -1,8 +1,6 @@
 // Pyramidal KLT with a forward-backward check (see klt_round_trip.h).
 #include "linnet/features/klt_round_trip.h"
 
-#include "linnet/features/lucas_kanade.h"
-
 namespace linnet {
 
 std::vector<unsigned char> kltRoundTrip(const std::vector<cv::Mat>& pyr_a, const std::vector<cv::Mat>& pyr_b,
@@ -12,13 +10,7 @@ std::vector<unsigned char> kltRoundTrip(const std::vector<cv::Mat>& pyr_a, const
   std::vector<unsigned char> ok(from.size(), 0);
   if (from.empty()) return ok;
   std::vector<unsigned char> st_f, st_b;
-  LucasKanadeParams lk;
-  lk.window = p.window;
-  lk.max_level = p.levels;
-  lk.max_iterations = p.criteria.maxCount;
-  lk.epsilon = p.criteria.epsilon;
-  lk.min_eigen = p.min_eigen;
-  lucasKanade(pyr_a, pyr_b, from, to, &st_f, lk);
+  lucasKanade(pyr_a, pyr_b, from, to, &st_f, p.forward);
   // The backward pass starts at the original positions, only for the points sent to it.
   std::vector<cv::Point2f> fwd, back;
   std::vector<std::size_t> fwd_idx;
@@ -32,8 +24,9 @@ std::vector<unsigned char> kltRoundTrip(const std::vector<cv::Mat>& pyr_a, const
     back.push_back(from[k]);
   }
   if (fwd.empty()) return ok;
-  lk.max_level = p.back_levels;
-  lucasKanade(pyr_b, pyr_a, fwd, &back, &st_b, lk);
+  LucasKanadeParams backward = p.forward;
+  backward.max_level = p.back_levels;
+  lucasKanade(pyr_b, pyr_a, fwd, &back, &st_b, backward);
   const double t2 = p.threshold_px * p.threshold_px;
   for (std::size_t j = 0; j < fwd_idx.size(); ++j) {
     const cv::Point2f d = back[j] - from[fwd_idx[j]];

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "linnet/core/error.h"
+#include "linnet/features/image_pyramid.h"
 #include "linnet/features/lucas_kanade_kernels.h"
 
 namespace linnet {
@@ -31,23 +32,6 @@ lk::Weights bilinear(float a, float b) {
   w.w10 = cvRound((1.f - a) * b * (1 << lk::kWeightBits));
   w.w11 = (1 << lk::kWeightBits) - w.w00 - w.w01 - w.w10;
   return w;
-}
-
-// Levels above full resolution of a cv::buildOpticalFlowPyramid result, and whether it interleaves derivatives.
-struct Layout {
-  int levels = 0;
-  int step = 1;
-};
-
-Layout layoutOf(const std::vector<cv::Mat>& pyr, const char* which) {
-  if (pyr.empty()) throw UsageError(std::string("lucasKanade: the ") + which + " pyramid is empty");
-  Layout l;
-  l.levels = static_cast<int>(pyr.size()) - 1;
-  if (l.levels % 2 == 1 && pyr[1].type() == CV_16SC2 && pyr[0].channels() == 1) {
-    l.step = 2;
-    l.levels /= 2;
-  }
-  return l;
 }
 
 // The window may reach `border` samples beyond every side of the level image: the pyramid must hold them.
@@ -87,21 +71,12 @@ struct Buffers {
   std::vector<U8> img;         // a copied image window, when reading it in place could pass the allocation
 };
 
-// A window of `rows` + 1 rows and `cols` + 1 pixels of m from (x, y) copied into *buf with rows (`len` + 1) pixels
-// long, zero beyond the copy: what a row kernel reading `len` + 1 pixels may read.
-const U8* copyWindow(const cv::Mat& m, int x, int y, int rows, int cols, int len, std::vector<U8>* buf) {
-  const std::size_t row_len = static_cast<std::size_t>(len + 1);
-  buf->assign(row_len * static_cast<std::size_t>(rows + 1), 0);
-  for (int r = 0; r <= rows; ++r)
-    std::copy_n(pixelAt(m, x, y + r), static_cast<std::size_t>(cols + 1),
-                buf->data() + static_cast<std::size_t>(r) * row_len);
-  return buf->data();
-}
-
-// The template's reads, rows y - 1 .. y + rows + 1 and pixels x - 1 .. x + len + 1 of m, copied into *buf with every
-// position clamped into m's padded allocation (the clamped ones only feed derivatives outside the image, which are
-// 0); returns the copy's pixel (x, y), rows len + 3 apart.
-const U8* copyTemplateWindow(const cv::Mat& m, int x, int y, int rows, int len, std::vector<U8>* buf) {
+// What a window kernel may read around pixel (x, y) of m, rows y - 1 .. y + rows + 1 and pixels x - 1 .. x + len + 1,
+// copied into *buf with every position clamped into m's padded allocation, for a window near its end. The window's
+// own pixels (rows and `width` + 1 pixels from (x, y)) lie in the padding; the clamped ones only feed derivatives
+// outside the image (0) or samples past the window's width (not summed). Returns the copy's pixel (x, y), rows
+// len + 3 apart.
+const U8* copyClamped(const cv::Mat& m, int x, int y, int rows, int len, std::vector<U8>* buf) {
   cv::Size whole;
   cv::Point ofs;
   m.locateROI(whole, ofs);
@@ -137,7 +112,7 @@ bool trackLevel(const Level& lv, const LucasKanadeParams& p, int max_count, doub
   const U8* img = pixelAt(I, ip.x, ip.y);
   std::ptrdiff_t img_step = static_cast<std::ptrdiff_t>(I.step[0]);
   if (!readable(I, ip.x - 1, ip.y - 1, ip.x + stride + 1, ip.y + win.height + 1)) {
-    img = copyTemplateWindow(I, ip.x, ip.y, win.height, stride, &buf->img);
+    img = copyClamped(I, ip.x, ip.y, win.height, stride, &buf->img);
     img_step = stride + 3;
   }
   lk::WindowPlace place;
@@ -166,8 +141,8 @@ bool trackLevel(const Level& lv, const LucasKanadeParams& p, int max_count, doub
     const U8* next = pixelAt(J, in.x, in.y);
     std::ptrdiff_t next_step = static_cast<std::ptrdiff_t>(J.step[0]);
     if (!readable(J, in.x, in.y, in.x + stride, in.y + win.height)) {
-      next = copyWindow(J, in.x, in.y, win.height, win.width, stride, &buf->img);
-      next_step = stride + 1;
+      next = copyClamped(J, in.x, in.y, win.height, stride, &buf->img);
+      next_step = stride + 3;
     }
     float b1 = 0.f, b2 = 0.f;
     buf->residual(next, next_step, buf->shape, bilinear(next_pt.x - in.x, next_pt.y - in.y), buf->t.data(),
@@ -202,8 +177,9 @@ void lucasKanade(const std::vector<cv::Mat>& prev, const std::vector<cv::Mat>& n
   if (to->size() != from.size()) throw UsageError("lucasKanade: *to must hold one initial position per point");
   status->assign(from.size(), 1);
   if (from.empty()) return;
-  const Layout lp = layoutOf(prev, "previous"), ln = layoutOf(next, "next");
-  const int max_level = std::min({p.max_level, lp.levels, ln.levels});
+  if (prev.empty() || next.empty()) throw UsageError("lucasKanade: a pyramid is empty");
+  const PyramidLayout lp = pyramidLayout(prev), ln = pyramidLayout(next);
+  const int max_level = std::min({p.max_level, lp.levels - 1, ln.levels - 1});
   std::vector<Level> levels(static_cast<std::size_t>(max_level) + 1);
   for (int l = 0; l <= max_level; ++l) {
     Level& lv = levels[static_cast<std::size_t>(l)];

@@ -17,15 +17,11 @@ using I16 = std::int16_t;
 using I32 = std::int32_t;
 using U8 = std::uint8_t;
 
-int sampleImage(const U8* r0, const U8* r1, int x, const Weights& w) {
-  return (r0[x] * w.w00 + r0[x + 1] * w.w01 + r1[x] * w.w10 + r1[x + 1] * w.w11 + (1 << (kSampleShift - 1))) >>
-         kSampleShift;
-}
-
-// The same for derivative rows (one value per pixel), kept at their scale.
-int sampleDerivative(const I16* r0, const I16* r1, int x, const Weights& w) {
-  return (r0[x] * w.w00 + r0[x + 1] * w.w01 + r1[x] * w.w10 + r1[x + 1] * w.w11 + (1 << (kWeightBits - 1))) >>
-         kWeightBits;
+// Pixel x of two rows sampled at the weights' offset and rounded off by `shift` bits: kSampleShift for image rows
+// (5 fractional bits kept), kWeightBits for derivative rows (kept at their scale).
+template <typename T>
+int sample(const T* r0, const T* r1, int x, const Weights& w, int shift) {
+  return (r0[x] * w.w00 + r0[x + 1] * w.w01 + r1[x] * w.w10 + r1[x + 1] * w.w11 + (1 << (shift - 1))) >> shift;
 }
 
 // Scharr derivatives of pixel (i, j) of the window (img at its top-left pixel): 0 outside the image.
@@ -75,9 +71,9 @@ GradientSums templatePlain(const U8* img, std::ptrdiff_t img_step, WindowShape s
     I16* xr = gx + y * stride;
     I16* yr = gy + y * stride;
     for (int x = 0; x < stride; ++x) {
-      tr[x] = static_cast<I16>(sampleImage(r0, r0 + img_step, x, w));
-      xr[x] = static_cast<I16>(sampleDerivative(&dx[y * n], &dx[(y + 1) * n], x, w));
-      yr[x] = static_cast<I16>(sampleDerivative(&dy[y * n], &dy[(y + 1) * n], x, w));
+      tr[x] = static_cast<I16>(sample(r0, r0 + img_step, x, w, kSampleShift));
+      xr[x] = static_cast<I16>(sample(&dx[y * n], &dx[(y + 1) * n], x, w, kWeightBits));
+      yr[x] = static_cast<I16>(sample(&dy[y * n], &dy[(y + 1) * n], x, w, kWeightBits));
     }
     for (int x = 0; x < 8 * blocks; x += 4) {
       for (int k = 0; k < 4; ++k) {
@@ -106,7 +102,7 @@ void residualPlain(const U8* img, std::ptrdiff_t img_step, WindowShape shape, We
     const U8* r0 = img + y * img_step;
     const int o = y * stride;
     for (int x = 0; x < shape.width; ++x) {
-      const int r = sampleImage(r0, r0 + img_step, x, w) - t[o + x];
+      const int r = sample(r0, r0 + img_step, x, w, kSampleShift) - t[o + x];
       X[x] = r * gx[o + x];
       Y[x] = r * gy[o + x];
     }
@@ -139,7 +135,8 @@ LINNET_LK_AVX2_HELPER __m256i weightPair(int a, int b) {
 // 16 samples x0..x0+15 of two image rows, each (r[x] w_0 + r[x + 1] w_1) per row, rounded off by `shift` bits, as
 // int16 in their natural order. a0, a1: the rows' samples at x and x + 1 (as int16), likewise b0, b1.
 LINNET_LK_AVX2_HELPER __m256i bilinear16(__m256i a0, __m256i a1, __m256i b0, __m256i b1, __m256i wa, __m256i wb,
-                                         __m256i round, int shift) {
+                                         int shift) {
+  const __m256i round = _mm256_set1_epi32(1 << (shift - 1));
   __m256i lo = _mm256_add_epi32(_mm256_madd_epi16(_mm256_unpacklo_epi16(a0, a1), wa),
                                 _mm256_madd_epi16(_mm256_unpacklo_epi16(b0, b1), wb));
   __m256i hi = _mm256_add_epi32(_mm256_madd_epi16(_mm256_unpackhi_epi16(a0, a1), wa),
@@ -242,8 +239,6 @@ __attribute__((target("avx2"))) GradientSums templateAvx2Impl(const U8* img, std
                                                               WindowShape shape, WindowPlace pl, Weights w, I16* t,
                                                               I16* gx, I16* gy) {
   const __m256i wa = weightPair(w.w00, w.w01), wb = weightPair(w.w10, w.w11);
-  const __m256i round_img = _mm256_set1_epi32(1 << (kSampleShift - 1));
-  const __m256i round_der = _mm256_set1_epi32(1 << (kWeightBits - 1));
   __m128 q11 = _mm_setzero_ps(), q12 = _mm_setzero_ps(), q22 = _mm_setzero_ps();
   const int stride = shape.chunks * kLanes, blocks = shape.width / 8, rest = shape.width - 8 * blocks;
   const __m256i rest_mask = firstLanes(rest);
@@ -265,12 +260,12 @@ __attribute__((target("avx2"))) GradientSums templateAvx2Impl(const U8* img, std
     for (int c = 0; c < shape.chunks; ++c) {
       const int x0 = c * kLanes;
       const __m256i v = bilinear16(loadBytes16(r0 + x0), loadBytes16(r0 + x0 + 1), loadBytes16(r0 + img_step + x0),
-                                   loadBytes16(r0 + img_step + x0 + 1), wa, wb, round_img, kSampleShift);
+                                   loadBytes16(r0 + img_step + x0 + 1), wa, wb, kSampleShift);
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(tr + x0), v);
       const Derivatives16 a = above[c], b = windowRowDerivatives(img, img_step, y + 1, c, pl, in0[c], in1[c]);
       above[c] = b;
-      const __m256i ex = bilinear16(a.dx, a.dx1, b.dx, b.dx1, wa, wb, round_der, kWeightBits);
-      const __m256i ey = bilinear16(a.dy, a.dy1, b.dy, b.dy1, wa, wb, round_der, kWeightBits);
+      const __m256i ex = bilinear16(a.dx, a.dx1, b.dx, b.dx1, wa, wb, kWeightBits);
+      const __m256i ey = bilinear16(a.dy, a.dy1, b.dy, b.dy1, wa, wb, kWeightBits);
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(xr + x0), ex);
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(yr + x0), ey);
       for (int half = 0; half < 2; ++half) {
@@ -312,7 +307,6 @@ __attribute__((target("avx2"))) void residualAvx2Impl(const U8* img, std::ptrdif
                                                       Weights w, const I16* t, const I16* gx, const I16* gy, float* b1,
                                                       float* b2) {
   const __m256i wa = weightPair(w.w00, w.w01), wb = weightPair(w.w10, w.w11);
-  const __m256i round_img = _mm256_set1_epi32(1 << (kSampleShift - 1));
   __m256 q = _mm256_setzero_ps();
   const int stride = shape.chunks * kLanes, blocks = shape.width / 8, rest = shape.width - 8 * blocks;
   const __m256i rest_mask = firstLanes(rest);
@@ -324,7 +318,7 @@ __attribute__((target("avx2"))) void residualAvx2Impl(const U8* img, std::ptrdif
     for (int c = 0; c < shape.chunks; ++c) {
       const int x0 = c * kLanes;
       const __m256i v = bilinear16(loadBytes16(r0 + x0), loadBytes16(r0 + x0 + 1), loadBytes16(r0 + img_step + x0),
-                                   loadBytes16(r0 + img_step + x0 + 1), wa, wb, round_img, kSampleShift);
+                                   loadBytes16(r0 + img_step + x0 + 1), wa, wb, kSampleShift);
       const __m256i r = _mm256_sub_epi16(v, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t + o + x0)));
       const __m256i ex = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(gx + o + x0));
       const __m256i ey = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(gy + o + x0));

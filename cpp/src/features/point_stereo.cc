@@ -9,24 +9,12 @@
 
 #include "linnet/core/error.h"
 #include "linnet/core/simd_clones.h"
+#include "linnet/features/image_pyramid.h"
 #include "linnet/features/klt_round_trip.h"
 
 namespace linnet {
 
 namespace {
-
-// Level `lvl` image of a buildPyramid or cv::buildOpticalFlowPyramid result (interleaved with derivatives when those
-// were built).
-const cv::Mat& levelImage(const std::vector<cv::Mat>& pyr, int lvl) {
-  const bool with_deriv = pyr.size() >= 2 && pyr[1].type() != pyr[0].type();
-  const std::size_t idx = static_cast<std::size_t>(with_deriv ? 2 * lvl : lvl);
-  return pyr[std::min(idx, pyr.size() - (with_deriv ? 2 : 1))];
-}
-
-int numLevels(const std::vector<cv::Mat>& pyr) {
-  const bool with_deriv = pyr.size() >= 2 && pyr[1].type() != pyr[0].type();
-  return static_cast<int>(with_deriv ? pyr.size() / 2 : pyr.size());
-}
 
 // Zero-mean, unit-norm patch of (2h+1)^2 pixels at an integer centre into out (resized by the caller); false when
 // it leaves the image or is flat. Built for AVX2 as well (the same sums and the same float operations per pixel).
@@ -131,10 +119,10 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
 
   // 1. Initial guesses: the prior, else the best ZNCC along the epipolar curve between depth search_min_depth_m and
   //    infinity, sampled about one pixel apart at the search level.
-  const int lvl = std::clamp(p.search_level, 0, numLevels(pyr0) - 1);
+  const int lvl = std::clamp(p.search_level, 0, pyramidLayout(pyr0).levels - 1);
   const double scale = 1.0 / static_cast<double>(1 << lvl);
-  const cv::Mat& img0 = levelImage(pyr0, lvl);
-  const cv::Mat& img1 = levelImage(pyr1, lvl);
+  const cv::Mat& img0 = pyramidLevel(pyr0, lvl);
+  const cv::Mat& img1 = pyramidLevel(pyr1, lvl);
   const double rho_search = 1.0 / std::max(1e-3, p.search_min_depth_m);
   const int samples = std::max(2, static_cast<int>(std::ceil(cam1.fx() * baseline * rho_search * scale)) + 1);
   std::vector<cv::Point2f> guess(n);
@@ -261,7 +249,7 @@ std::vector<StereoPointResult> matchStereoPoints(const std::vector<cv::Mat>& pyr
       }
       // Last check at full resolution: KLT can settle on a look-alike further along the epipolar line.
       if (p.verify_min_zncc > -1.0 &&
-          subpixelZncc(levelImage(pyr0, 0), left[k], levelImage(pyr1, 0), right[k], p.verify_half_patch) <
+          subpixelZncc(pyramidLevel(pyr0, 0), left[k], pyramidLevel(pyr1, 0), right[k], p.verify_half_patch) <
               p.verify_min_zncc) {
         ++st.verify_rejected;
         continue;

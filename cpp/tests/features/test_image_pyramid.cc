@@ -62,6 +62,21 @@ TEST(ImagePyramid, BuildPyramidEqualsOpenCvPaddingIncluded) {
       }
 }
 
+TEST(ImagePyramid, LayoutWithAndWithoutDerivativeImages) {
+  const cv::Mat img = randomImage(240, 320, 7);
+  for (const bool derivatives : {false, true}) {
+    std::vector<cv::Mat> pyr;
+    cv::buildOpticalFlowPyramid(img, pyr, cv::Size(15, 15), 3, derivatives);
+    const PyramidLayout l = pyramidLayout(pyr);
+    EXPECT_EQ(l.levels, 4);
+    EXPECT_EQ(l.step, derivatives ? 2 : 1);
+    EXPECT_EQ(pyramidLevel(pyr, 2).size(), cv::Size(80, 60));
+    EXPECT_EQ(pyramidLevel(pyr, 9).size(), cv::Size(40, 30));  // the coarsest level
+    EXPECT_EQ(pyramidLevel(pyr, 0).type(), CV_8UC1);
+  }
+  EXPECT_THROW(pyramidLevel(std::vector<cv::Mat>(), 0), UsageError);
+}
+
 TEST(ImagePyramid, RejectsWhatItCannotBuild) {
   std::vector<cv::Mat> pyr;
   EXPECT_THROW(buildPyramid(cv::Mat(), cv::Size(15, 15), 3, &pyr), UsageError);

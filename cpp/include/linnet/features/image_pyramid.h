@@ -20,4 +20,15 @@ void pyramidDown(const cv::Mat& src, cv::Mat& dst);
 /// *pyramid's buffers when their sizes fit (as OpenCV does). Returns the number of levels above full resolution.
 int buildPyramid(const cv::Mat& img, cv::Size window, int max_level, std::vector<cv::Mat>* pyramid);
 
+/// The number of levels (full resolution included) of a buildPyramid or cv::buildOpticalFlowPyramid result, and the
+/// step between two levels' images in it: 2 when each level is followed by its derivative image (OpenCV's rule).
+struct PyramidLayout {
+  int levels = 0;
+  int step = 1;
+};
+PyramidLayout pyramidLayout(const std::vector<cv::Mat>& pyramid);
+
+/// Level `level` of such a pyramid (the coarsest one when it holds fewer); the pyramid must not be empty.
+const cv::Mat& pyramidLevel(const std::vector<cv::Mat>& pyramid, int level);
+
 }  // namespace linnet

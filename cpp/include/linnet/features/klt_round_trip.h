@@ -6,14 +6,13 @@
 
 #include <opencv2/core.hpp>
 
+#include "linnet/features/lucas_kanade.h"
+
 namespace linnet {
 
 struct KltRoundTripParams {
-  cv::Size window{15, 15};        // KLT window, pixels
-  cv::TermCriteria criteria;      // per-level termination
-  double min_eigen = 1e-4;        // smallest gradient eigenvalue per pixel (cv::calcOpticalFlowPyrLK minEigThreshold)
-  int levels = 3;                 // forward pass: pyramid levels above full resolution
-  int back_levels = 3;            // backward pass: pyramid levels above full resolution
+  LucasKanadeParams forward;      // the forward pass (window, levels, iterations, step, minimum eigenvalue)
+  int back_levels = 3;            // backward pass: pyramid levels above full resolution (else as the forward pass)
   double threshold_px = 1.0;      // largest distance of the backward result from the start point, pixels
 };
 
@@ -22,10 +21,11 @@ struct KltRoundTripParams {
 inline KltRoundTripParams kltRoundTripParams(int window_px, int max_iterations, double epsilon, double min_eigen,
                                              int levels, int back_levels, double threshold_px) {
   KltRoundTripParams p;
-  p.window = cv::Size(window_px, window_px);
-  p.criteria = cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, max_iterations, epsilon);
-  p.min_eigen = min_eigen;
-  p.levels = levels;
+  p.forward.window = cv::Size(window_px, window_px);
+  p.forward.max_level = levels;
+  p.forward.max_iterations = max_iterations;
+  p.forward.epsilon = epsilon;
+  p.forward.min_eigen = min_eigen;
   p.back_levels = back_levels;
   p.threshold_px = threshold_px;
   return p;
