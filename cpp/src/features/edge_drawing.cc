@@ -51,15 +51,35 @@ struct LineFit {
   double cx = 0.0, cy = 0.0, dx = 1.0, dy = 0.0, mse = 0.0;
 };
 
+// The second moments of a point set from its sums: the covariance [[a, b], [b, c]], its mean eigenvalue m and the
+// square s of half its eigenvalues' spread, so that the eigenvalues are m -+ sqrt(s). Shared by fitFromSums and
+// surelyNotStraight, so that both see the same doubles.
+struct Moments {
+  double cx, cy, a, b, c, half, m, s;
+};
+
+Moments momentsFromSums(double n, double sx, double sy, double sxx, double syy, double sxy) {
+  Moments mo;
+  mo.cx = sx / n;
+  mo.cy = sy / n;
+  mo.a = sxx / n - mo.cx * mo.cx;
+  mo.c = syy / n - mo.cy * mo.cy;
+  mo.b = sxy / n - mo.cx * mo.cy;
+  mo.half = 0.5 * (mo.a - mo.c);
+  mo.m = 0.5 * (mo.a + mo.c);
+  mo.s = mo.half * mo.half + mo.b * mo.b;
+  return mo;
+}
+
 LineFit fitFromSums(double n, double sx, double sy, double sxx, double syy, double sxy) {
+  const Moments mo = momentsFromSums(n, sx, sy, sxx, syy, sxy);
   LineFit f;
-  f.cx = sx / n;
-  f.cy = sy / n;
-  const double a = sxx / n - f.cx * f.cx, c = syy / n - f.cy * f.cy, b = sxy / n - f.cx * f.cy;
-  const double half = 0.5 * (a - c), root = std::sqrt(half * half + b * b);
-  f.mse = std::max(0.0, 0.5 * (a + c) - root);
+  f.cx = mo.cx;
+  f.cy = mo.cy;
+  const double a = mo.a, b = mo.b, c = mo.c, root = std::sqrt(mo.s);
+  f.mse = std::max(0.0, mo.m - root);
   // Eigenvector of the larger eigenvalue a + c over 2 + root: (b, lambda - a) or (lambda - c, b), the better scaled.
-  const double lambda = 0.5 * (a + c) + root;
+  const double lambda = mo.m + root;
   double vx = b, vy = lambda - a;
   if (std::abs(lambda - c) > std::abs(vy)) {
     vx = lambda - c;
@@ -74,6 +94,16 @@ LineFit fitFromSums(double n, double sx, double sy, double sxx, double syy, doub
     f.dy = 0.0;
   }
   return f;
+}
+
+// True only where fitFromSums' mse is certainly above tol2 (a window that is not straight), without its square roots
+// and divisions: mse = max(0, m - sqrt(s)) > tol2 when m - tol2 > sqrt(s). The test asks for 1e-9 of relative margin on
+// both sides, far more than the few roundings of either computation, so that whenever it says yes, fitFromSums'
+// rounded mse is above tol2 as well; near the boundary it says no and fitFromSums decides, so nothing changes.
+bool surelyNotStraight(const Moments& mo, double tol2) {
+  constexpr double kMargin = 1e-9;
+  const double x = mo.m - tol2 * (1.0 + kMargin);
+  return x > 0.0 && x * x > mo.s * (1.0 + kMargin);
 }
 
 inline double distance(const LineFit& f, double x, double y) { return std::abs((x - f.cx) * f.dy - (y - f.cy) * f.dx); }
@@ -248,8 +278,14 @@ void EdgeDrawing::fitLines(const std::vector<cv::Point>& chain, std::vector<cv::
   for (int k = 0; k < std::min(n, L); ++k) addPixel(k, 1.0);
   while (n - i >= L) {
     double sx = wx, sy = wy, sxx = wxx, syy = wyy, sxy = wxy;
-    LineFit f = fitFromSums(L, sx, sy, sxx, syy, sxy);
-    bool straight = f.mse <= tol2;  // cheap test first, then every pixel of the window within tol
+    // Most windows tried are not straight: those that surely are not skip the fit (the same decision, see
+    // surelyNotStraight).
+    bool straight = !surelyNotStraight(momentsFromSums(L, sx, sy, sxx, syy, sxy), tol2);
+    LineFit f;
+    if (straight) {
+      f = fitFromSums(L, sx, sy, sxx, syy, sxy);
+      straight = f.mse <= tol2;  // cheap test first, then every pixel of the window within tol
+    }
     for (int k = i; straight && k < i + L; ++k) straight = distance(f, chain[k].x - ox, chain[k].y - oy) <= tol;
     if (!straight) {
       addPixel(i, -1.0);

@@ -194,17 +194,24 @@ cv::Mat clutter(int rows, int cols, int seed) {
   return img;
 }
 
+// Also covers the fit's shortcut for windows that are surely not straight (no fit, the same decision): three
+// tolerances, so that many windows fall near each boundary.
 TEST(EdgeDrawing, SlidingFitEqualsThePlainFitBitForBit) {
-  const EdgeDrawingOptions opt;
-  EdgeDrawing ed(opt);
-  for (int seed : {1, 2, 3}) {
-    std::vector<cv::Vec4f> lines, plain;
-    ed.detect(clutter(480, 752, seed), &lines);
-    ASSERT_GT(ed.chains().size(), 100u);
-    for (const std::vector<cv::Point>& chain : ed.chains()) plainFitLines(chain, opt, &plain);
-    ASSERT_EQ(lines.size(), plain.size()) << "seed " << seed;
-    for (std::size_t i = 0; i < lines.size(); ++i)
-      for (int k = 0; k < 4; ++k) ASSERT_EQ(lines[i][k], plain[i][k]) << "seed " << seed << " line " << i;
+  for (double tol : {1.5, 0.75, 3.0}) {
+    EdgeDrawingOptions opt;
+    opt.fit_error_px = tol;
+    opt.min_line_px = tol == 0.75 ? 8 : opt.min_line_px;
+    EdgeDrawing ed(opt);
+    for (int seed : {1, 2, 3}) {
+      std::vector<cv::Vec4f> lines, plain;
+      ed.detect(clutter(480, 752, seed), &lines);
+      ASSERT_GT(ed.chains().size(), 100u);
+      for (const std::vector<cv::Point>& chain : ed.chains()) plainFitLines(chain, opt, &plain);
+      ASSERT_EQ(lines.size(), plain.size()) << "seed " << seed << ", tolerance " << tol;
+      for (std::size_t i = 0; i < lines.size(); ++i)
+        for (int k = 0; k < 4; ++k)
+          ASSERT_EQ(lines[i][k], plain[i][k]) << "seed " << seed << ", tolerance " << tol << ", line " << i;
+    }
   }
 }
 
