@@ -79,7 +79,8 @@ void SchurLmSolver::addParameterBlock(double* data, int ambient_size, const cere
   if (data == nullptr || ambient_size <= 0) throw UsageError("SchurLmSolver: a parameter block needs data and a size");
   if (manifold != nullptr && manifold->AmbientSize() != ambient_size)
     throw UsageError("SchurLmSolver: the manifold's ambient size differs from the block's");
-  if (index_.count(data)) throw UsageError("SchurLmSolver: a parameter block was added twice");
+  if (!index_.insert(data, static_cast<int>(blocks_.size())))
+    throw UsageError("SchurLmSolver: a parameter block was added twice");
   Block b;
   b.data = data;
   b.ambient = ambient_size;
@@ -88,7 +89,6 @@ void SchurLmSolver::addParameterBlock(double* data, int ambient_size, const cere
   b.eliminate = eliminate;
   b.pose = isPoseBlock(ambient_size, manifold);
   b.offset = -1;
-  index_.emplace(data, static_cast<int>(blocks_.size()));
   blocks_.push_back(b);
   prepared_ = false;
 }
@@ -119,12 +119,12 @@ void SchurLmSolver::addResidual(const ceres::CostFunction* cost, const ceres::Lo
   };
   int eliminated = 0;
   for (std::size_t k = 0; k < blocks.size(); ++k) {
-    const auto it = index_.find(blocks[k]);
-    if (it == index_.end()) fail("a residual uses an unregistered parameter block");
-    const Block& b = blocks_[static_cast<std::size_t>(it->second)];
+    const int index = index_.find(blocks[k]);
+    if (index < 0) fail("a residual uses an unregistered parameter block");
+    const Block& b = blocks_[static_cast<std::size_t>(index)];
     if (b.ambient != sizes[k]) fail("a residual's block size differs from the block's");
     if (b.eliminate && ++eliminated > 1) fail("a residual joins two eliminated blocks");
-    res_blocks_.push_back(it->second);
+    res_blocks_.push_back(index);
   }
   residuals_.push_back(r);
   prepared_ = false;

@@ -11,7 +11,6 @@
 
 #include <initializer_list>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 #include <ceres/cost_function.h>
@@ -20,6 +19,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
+#include "linnet/estimator/block_index.h"
 #include "linnet/estimator/factors/tangent_jacobians.h"
 
 namespace linnet {
@@ -71,7 +71,7 @@ class SchurLmSolver {
   /// Jacobian is asked for it and it has no rows in the system.
   void addConstantBlock(double* data, int ambient_size);
   /// True if the block at `data` is registered (as a parameter or a constant block).
-  bool hasBlock(const double* data) const { return index_.count(data) != 0; }
+  bool hasBlock(const double* data) const { return index_.find(data) >= 0; }
   /// Adds a residual over registered blocks (in the cost function's order). `loss` may be nullptr.
   void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss, std::span<double* const> blocks);
   void addResidual(const ceres::CostFunction* cost, const ceres::LossFunction* loss,
@@ -147,7 +147,7 @@ class SchurLmSolver {
   void restoreValues();
 
   std::vector<Block> blocks_;
-  std::unordered_map<const double*, int> index_;
+  BlockIndex index_;
   TangentJacobiansCache tangent_of_;  // the residuals' TangentJacobians, looked up once per cost function type
   std::vector<Residual> residuals_;
   std::vector<int> res_blocks_;  // the residuals' blocks, flat
