@@ -117,9 +117,12 @@ bool LineTracker::undistortSegment(const CameraModel& cam, const LineSegment& px
   return cam.undistort(px.s, &uv->s) && cam.undistort(px.e, &uv->e) && (uv->e - uv->s).norm() > 1e-9;
 }
 
-bool LineTracker::rotateSegment(const Mat3& R_Ccur_Cprev, LineSegment* px) const {
+bool LineTracker::rotateSegment(const Mat3& R_Ccur_Cprev, LineSegment* px, const LineSegment* uv_known) const {
   LineSegment uv;
-  if (!undistortSegment(cam0_, *px, &uv)) return false;
+  if (uv_known != nullptr)
+    uv = *uv_known;
+  else if (!undistortSegment(cam0_, *px, &uv))
+    return false;
   LineSegment out;
   if (!cam0_.project(R_Ccur_Cprev * Vec3(uv.s.x(), uv.s.y(), 1.0), &out.s) ||
       !cam0_.project(R_Ccur_Cprev * Vec3(uv.e.x(), uv.e.y(), 1.0), &out.e) || !std::isfinite(out.s.sum() + out.e.sum()))
@@ -168,7 +171,9 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   for (std::size_t k = 0; k < prev.size(); ++k) {
     prev_segs[k] = prev[k]->px;
     prev_desc[k] = prev[k]->desc;
-    if (R_pred) rotateSegment(*R_pred, &prev_segs[k]);
+    const Track& tr = *prev[k];
+    const bool uv_known = tr.has_uv && tr.uv_of.s == tr.px.s && tr.uv_of.e == tr.px.e;
+    if (R_pred) rotateSegment(*R_pred, &prev_segs[k], uv_known ? &tr.uv : nullptr);
   }
   std::vector<int> match_of_cur;
   const double dt = has_last_ ? toSeconds(t - last_t_) : 0.0;
@@ -280,10 +285,14 @@ void LineTracker::track(Timestamp t, const cv::Mat& left, const cv::Mat& right, 
   std::vector<LbdDescriptor> left_desc;
   std::vector<int> track_of_left;
   for (std::size_t ti = 0; ti < tracks_.size(); ++ti) {
-    const Track& tr = tracks_[ti];
+    Track& tr = tracks_[ti];
     LineObservation ob;
     LineSegment uv;
+    tr.has_uv = false;
     if (!undistortSegment(cam0_, tr.px, &uv)) continue;
+    tr.uv = uv;
+    tr.uv_of = tr.px;
+    tr.has_uv = true;
     ob.id = tr.id;
     ob.ps0 = tr.px.s;
     ob.pe0 = tr.px.e;

@@ -87,6 +87,10 @@ class LineTracker {
                                      // turned by the rotation predictions since (the guided stereo pass's prior)
     Vec3 stereo_e = Vec3::Zero();
     Vec2 flow = Vec2::Zero();  // last motion of its midpoint beyond the rotation prediction, pixels per second
+    // px undistorted (cam0 normalised) when it was delivered, and the px it was computed from: the next frame's
+    // rotation prediction starts from the same px and reuses it while uv_of equals px.
+    LineSegment uv{}, uv_of{};
+    bool has_uv = false;
   };
   const std::vector<Track>& tracks() const { return tracks_; }
 
@@ -98,7 +102,8 @@ class LineTracker {
   void refine(const cv::Mat& img, LineSegment* seg) const;
   bool undistortSegment(const CameraModel& cam, const LineSegment& px, LineSegment* uv) const;
   // Moves a cam0 pixel segment by a pure rotation; false (segment untouched) when an endpoint cannot be mapped.
-  bool rotateSegment(const Mat3& R_Ccur_Cprev, LineSegment* px) const;
+  // `uv`: px undistorted, if known.
+  bool rotateSegment(const Mat3& R_Ccur_Cprev, LineSegment* px, const LineSegment* uv = nullptr) const;
   // Guided stereo: the right segment (cam1 pixels) predicted for a track with a stereo prior, through its current
   // left segment (normalised), clipped to cam1's image; false when degenerate, out of the depth range or too short.
   bool predictRight(const Track& track, const LineSegment& left_uv, LineSegment* px) const;
