@@ -51,35 +51,15 @@ struct LineFit {
   double cx = 0.0, cy = 0.0, dx = 1.0, dy = 0.0, mse = 0.0;
 };
 
-// The second moments of a point set from its sums: the covariance [[a, b], [b, c]], its mean eigenvalue m and the
-// square s of half its eigenvalues' spread, so that the eigenvalues are m -+ sqrt(s). Shared by fitFromSums and
-// surelyNotStraight, so that both see the same doubles.
-struct Moments {
-  double cx, cy, a, b, c, half, m, s;
-};
-
-Moments momentsFromSums(double n, double sx, double sy, double sxx, double syy, double sxy) {
-  Moments mo;
-  mo.cx = sx / n;
-  mo.cy = sy / n;
-  mo.a = sxx / n - mo.cx * mo.cx;
-  mo.c = syy / n - mo.cy * mo.cy;
-  mo.b = sxy / n - mo.cx * mo.cy;
-  mo.half = 0.5 * (mo.a - mo.c);
-  mo.m = 0.5 * (mo.a + mo.c);
-  mo.s = mo.half * mo.half + mo.b * mo.b;
-  return mo;
-}
-
 LineFit fitFromSums(double n, double sx, double sy, double sxx, double syy, double sxy) {
-  const Moments mo = momentsFromSums(n, sx, sy, sxx, syy, sxy);
   LineFit f;
-  f.cx = mo.cx;
-  f.cy = mo.cy;
-  const double a = mo.a, b = mo.b, c = mo.c, root = std::sqrt(mo.s);
-  f.mse = std::max(0.0, mo.m - root);
+  f.cx = sx / n;
+  f.cy = sy / n;
+  const double a = sxx / n - f.cx * f.cx, c = syy / n - f.cy * f.cy, b = sxy / n - f.cx * f.cy;
+  const double half = 0.5 * (a - c), root = std::sqrt(half * half + b * b);
+  f.mse = std::max(0.0, 0.5 * (a + c) - root);
   // Eigenvector of the larger eigenvalue a + c over 2 + root: (b, lambda - a) or (lambda - c, b), the better scaled.
-  const double lambda = mo.m + root;
+  const double lambda = 0.5 * (a + c) + root;
   double vx = b, vy = lambda - a;
   if (std::abs(lambda - c) > std::abs(vy)) {
     vx = lambda - c;
@@ -96,14 +76,23 @@ LineFit fitFromSums(double n, double sx, double sy, double sxx, double syy, doub
   return f;
 }
 
-// True only where fitFromSums' mse is certainly above tol2 (a window that is not straight), without its square roots
-// and divisions: mse = max(0, m - sqrt(s)) > tol2 when m - tol2 > sqrt(s). The test asks for 1e-9 of relative margin on
-// both sides, far more than the few roundings of either computation, so that whenever it says yes, fitFromSums'
-// rounded mse is above tol2 as well; near the boundary it says no and fitFromSums decides, so nothing changes.
-bool surelyNotStraight(const Moments& mo, double tol2) {
-  constexpr double kMargin = 1e-9;
-  const double x = mo.m - tol2 * (1.0 + kMargin);
-  return x > 0.0 && x * x > mo.s * (1.0 + kMargin);
+// True only where fitFromSums' mse is certainly above tol2 (a window that is not straight), with neither its divisions
+// nor its square roots, for sums of integer coordinates (the chain's pixels relative to its first one). Then
+// A = n sxx - sx^2, C = n syy - sy^2 and B = n sxy - sx sy are exact, and n^2 times the exact mse is
+// M - sqrt(S) with M = (A + C) / 2, S = ((A - C) / 2)^2 + B^2. fitFromSums' rounded mse is within
+// 34 u (sxx + syy + |sxy|) / n of the exact one (u = 2^-53: each of a, b, c within 10 u of the second moments, the
+// smaller eigenvalue 1-Lipschitz in each, and the last few roundings); the test adds 1e-13 of them to tol2, 1e-12
+// relative to its own products and 1e-9 relative to its square, so that whenever it says yes, fitFromSums' mse is
+// above tol2 as well. Near the boundary it says no and the full fit decides: the decisions stay the same.
+bool surelyNotStraight(double n, double sx, double sy, double sxx, double syy, double sxy, double tol2) {
+  constexpr double kExact = 0x1p50;  // the products below are exact integers while the sums stay this small
+  if (!(n * std::max(sxx, syy) < kExact) || !(sx * sx + sy * sy < kExact) || !(n * std::abs(sxy) < kExact))
+    return false;
+  const double A = n * sxx - sx * sx, C = n * syy - sy * sy, B = n * sxy - sx * sy;
+  const double M = 0.5 * (A + C), D = 0.5 * (A - C), S = D * D + B * B;
+  const double slack = 1e-13 * (sxx + syy + std::abs(sxy)) * n;  // n^2 times the bound on fitFromSums' error
+  const double x = M - (n * n * tol2 * (1.0 + 1e-12) + slack);
+  return x > 0.0 && x * x > S * (1.0 + 1e-9);
 }
 
 inline double distance(const LineFit& f, double x, double y) { return std::abs((x - f.cx) * f.dy - (y - f.cy) * f.dx); }
@@ -280,7 +269,7 @@ void EdgeDrawing::fitLines(const std::vector<cv::Point>& chain, std::vector<cv::
     double sx = wx, sy = wy, sxx = wxx, syy = wyy, sxy = wxy;
     // Most windows tried are not straight: those that surely are not skip the fit (the same decision, see
     // surelyNotStraight).
-    bool straight = !surelyNotStraight(momentsFromSums(L, sx, sy, sxx, syy, sxy), tol2);
+    bool straight = !surelyNotStraight(L, sx, sy, sxx, syy, sxy, tol2);
     LineFit f;
     if (straight) {
       f = fitFromSums(L, sx, sy, sxx, syy, sxy);
