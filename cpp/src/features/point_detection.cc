@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "linnet/core/error.h"
+#include "linnet/features/fast_corners.h"
 
 namespace linnet {
 
@@ -25,7 +26,7 @@ struct Candidate {
 std::vector<Candidate> fastCandidates(const cv::Mat& image, const cv::Mat& mask, int threshold, FastCorners* whole) {
   std::vector<Candidate> c;
   std::vector<cv::KeyPoint> kps;
-  cv::FAST(image, kps, threshold, /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
+  fastCorners(image, threshold, &kps);  // cv::FAST's 9-16 corners with suppression, bit for bit
   for (const cv::KeyPoint& k : kps) {
     const cv::Point ip(cvRound(k.pt.x), cvRound(k.pt.y));
     if (mask.at<unsigned char>(ip)) c.push_back({k.pt, k.response});

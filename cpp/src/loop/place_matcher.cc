@@ -9,6 +9,7 @@
 #include <opencv2/features2d.hpp>
 
 #include "linnet/camera/camera_model.h"
+#include "linnet/features/fast_corners.h"
 #include "linnet/geometry/projection.h"
 #include "linnet/geometry/triangulation.h"
 #include "place_match_detail.h"
@@ -33,7 +34,7 @@ PlaceFeatures describePlace(const cv::Mat& left, const CameraModel& cam0, const 
     if (found != nullptr && found->threshold == options.fast_threshold)
       corners = found->keypoints;
     else
-      cv::FAST(left, corners, options.fast_threshold, true);
+      fastCorners(left, options.fast_threshold, &corners);
     cv::KeyPointsFilter::retainBest(corners, options.corners);
     // Strongest first (retainBest only partitions): the loop closer's database keeps a prefix of them.
     std::stable_sort(corners.begin(), corners.end(),
