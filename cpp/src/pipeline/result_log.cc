@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
+#include <string>
 
 namespace linnet {
 
@@ -21,8 +23,10 @@ const T* ResultLog::inForce(const std::vector<std::pair<std::size_t, T>>& list, 
 
 void ResultLog::push(const FrameResult& r, const std::optional<Pose>& correction) {
   const EstimatorOutput& e = r.estimate;
-  const std::size_t i = records_.size();
-  Record rec;
+  const std::size_t i = size_;
+  if (i % kBlock == 0) blocks_.push_back(std::make_unique<Record[]>(kBlock));
+  Record& rec = blocks_[i / kBlock][i % kBlock];
+  rec = Record{};
   rec.T_W_B = e.T_W_B;
   rec.t = e.t;
   rec.v_W = e.v_W;
@@ -51,7 +55,7 @@ void ResultLog::push(const FrameResult& r, const std::optional<Pose>& correction
   rec.backend_cpu_ms = static_cast<float>(r.backend_cpu_ms);
   rec.loop_cpu_ms = static_cast<float>(r.loop_cpu_ms);
   rec.rss_mb = static_cast<float>(r.rss_mb);
-  records_.push_back(rec);
+  ++size_;
 
   const Calibration* last = calibrations_.empty() ? nullptr : &calibrations_.back().second;
   if (!last || !samePose(last->T_B_R, e.T_B_R) || !samePose(last->S_C1, e.S_C1) ||
@@ -63,16 +67,17 @@ void ResultLog::push(const FrameResult& r, const std::optional<Pose>& correction
 
 void ResultLog::recorrect(const std::function<Pose(Timestamp)>& final) {
   corrections_.clear();
-  for (std::size_t i = 0; i < records_.size(); ++i) {
-    if (!records_[i].has_pose) continue;
-    const Pose C = final(records_[i].t);
+  for (std::size_t i = 0; i < size_; ++i) {
+    if (!record(i).has_pose) continue;
+    const Pose C = final(record(i).t);
     if (corrections_.empty() || !samePose(corrections_.back().second, C)) corrections_.emplace_back(i, C);
   }
   recorrected_ = true;
 }
 
 FrameResult ResultLog::at(std::size_t i) const {
-  const Record& rec = records_.at(i);
+  if (i >= size_) throw std::out_of_range("ResultLog::at: no result " + std::to_string(i));
+  const Record& rec = record(i);
   FrameResult r;
   EstimatorOutput& e = r.estimate;
   e.t = rec.t;
@@ -122,7 +127,7 @@ FrameResult ResultLog::at(std::size_t i) const {
 }
 
 std::size_t ResultLog::bytes() const {
-  return records_.size() * sizeof(Record) + calibrations_.capacity() * sizeof(calibrations_[0]) +
+  return blocks_.size() * kBlock * sizeof(Record) + blocks_.capacity() * sizeof(blocks_[0]) + calibrations_.capacity() * sizeof(calibrations_[0]) +
          corrections_.capacity() * sizeof(corrections_[0]);
 }
 

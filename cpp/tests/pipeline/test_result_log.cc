@@ -124,7 +124,19 @@ TEST(ResultLog, GivesBackEveryResultWithItsCorrection) {
     SCOPED_TRACE(i);
     expectSame(log.at(i), pushed[i]);
   }
-  EXPECT_LE(log.bytes(), pushed.size() * 240 + 2000);
+  // One block of records so far (256 of them), whatever the 40 results.
+  EXPECT_LE(log.bytes(), 256 * 224 + 2000);
+}
+
+TEST(ResultLog, AFrameCostsItsRecordOnALongRun) {
+  std::mt19937 rng(5);
+  ResultLog log;
+  const int n = 5000;  // 20 blocks of 256 records, the last one partly used
+  for (int i = 0; i < n; ++i) log.push(makeResult(rng, i, std::nullopt), std::nullopt);
+  ASSERT_EQ(log.size(), static_cast<std::size_t>(n));
+  EXPECT_LE(log.bytes(), static_cast<std::size_t>(n) * 232);  // 224 bytes a record, the unused tail of one block
+  EXPECT_EQ(log.at(n - 1).estimate.t, makeResult(rng, n - 1, std::nullopt).estimate.t);
+  EXPECT_THROW(log.at(n), std::out_of_range);
 }
 
 TEST(ResultLog, RecorrectGivesEveryPosedFrameItsFinalCorrection) {
