@@ -44,18 +44,18 @@ LINNET_FAST_AVX2_HELPER __m256i bestArc(const __m256i* e) {
 }
 
 // One image row (`row`: its column 0): columns 3..cols - 4 tested 32 at a time (the last block moved back to end at
-// cols - 4; cols >= 38), each corner's score written to `scores` (0 elsewhere: the caller zeroes the row) and its
-// column appended to `corners`, in increasing order.
+// cols - 4; cols >= 38), each corner's score written to `scores` (0 elsewhere: the caller zeroes the row). True if
+// the row holds a corner.
 //
 // With the differences clamped at 0, v -sat x and x -sat v, an arc's smallest is max(true smallest, 0), and the largest
 // over the arcs max(true largest, 0): the same as cornerScore's wherever it exceeds t >= 0. So the best arc b (either
 // sign) decides both: a corner where b > t, its score b - 1 (cornerScore: max(t, b) - 1), all in bytes.
-__attribute__((target("avx2"))) void rowAvx2(const U8* row, const int* ring, int cols, int threshold, U8* scores,
-                                             std::vector<int>* corners) {
+__attribute__((target("avx2"))) bool rowAvx2(const U8* row, const int* ring, int cols, int threshold, U8* scores) {
   const __m256i bias = _mm256_set1_epi8(static_cast<char>(0x80));  // unsigned order through signed compares
   const __m256i t8 = _mm256_set1_epi8(static_cast<char>(threshold));
   const __m256i one = _mm256_set1_epi8(1);
   const int last = cols - 4;
+  bool any = false;
   for (int done = 3; done <= last;) {
     const int j = std::min(done, last - 31);
     const U8* c = row + j;
@@ -89,12 +89,12 @@ __attribute__((target("avx2"))) void rowAvx2(const U8* row, const int* ring, int
     const __m256i best = _mm256_max_epu8(bestArc(below), bestArc(above));
     const __m256i corner = _mm256_xor_si256(_mm256_cmpeq_epi8(_mm256_min_epu8(best, t8), best),
                                             _mm256_set1_epi8(-1));  // best > t
-    std::uint32_t mask = static_cast<std::uint32_t>(_mm256_movemask_epi8(corner)) & fresh;
-    if (mask == 0) continue;
+    if ((static_cast<std::uint32_t>(_mm256_movemask_epi8(corner)) & fresh) == 0) continue;
     // Lanes the previous block tested are written again, with the same scores.
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(scores + j), _mm256_and_si256(_mm256_sub_epi8(best, one), corner));
-    for (; mask != 0; mask &= mask - 1) corners->push_back(j + std::countr_zero(mask));
+    any = true;
   }
+  return any;
 }
 
 // Non-maximum suppression of row y (scores `mid`, with `up` and `down` above and below), as cv::FAST's: a corner is
@@ -151,16 +151,13 @@ void fastCorners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>*
   // suppressed against rows y - 2..y (cv::FAST's order). Rows 2 and rows - 3 stay 0.
   std::vector<U8> scores(3 * static_cast<std::size_t>(cols), 0);
   const auto rowOf = [&](int y) { return scores.data() + static_cast<std::size_t>(y % 3) * cols; };
-  std::vector<int> previous, current;  // the corners' columns of rows y - 1 and y
+  bool previous = false;  // row y - 1 holds a corner
   for (int y = 3; y <= rows - 3; ++y) {
     U8* cur = rowOf(y);
     std::fill_n(cur, cols, U8{0});
-    current.clear();
-    if (y < rows - 3) rowAvx2(image.ptr<U8>(y), ring, cols, threshold, cur, &current);
-    if (y > 3) {
-      if (!previous.empty()) suppressRowAvx2(rowOf(y - 2), rowOf(y - 1), cur, cols, y - 1, keypoints);
-    }
-    previous.swap(current);
+    const bool current = y < rows - 3 && rowAvx2(image.ptr<U8>(y), ring, cols, threshold, cur);
+    if (previous) suppressRowAvx2(rowOf(y - 2), rowOf(y - 1), cur, cols, y - 1, keypoints);
+    previous = current;
   }
 #endif
 }

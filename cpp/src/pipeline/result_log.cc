@@ -24,9 +24,8 @@ const T* ResultLog::inForce(const std::vector<std::pair<std::size_t, T>>& list, 
 void ResultLog::push(const FrameResult& r, const std::optional<Pose>& correction) {
   const EstimatorOutput& e = r.estimate;
   const std::size_t i = size_;
-  if (i % kBlock == 0) blocks_.push_back(std::make_unique<Record[]>(kBlock));
+  if (i % kBlock == 0) blocks_.push_back(std::make_unique<Record[]>(kBlock));  // value-initialised records
   Record& rec = blocks_[i / kBlock][i % kBlock];
-  rec = Record{};
   rec.T_W_B = e.T_W_B;
   rec.t = e.t;
   rec.v_W = e.v_W;
@@ -127,7 +126,8 @@ FrameResult ResultLog::at(std::size_t i) const {
 }
 
 std::size_t ResultLog::bytes() const {
-  return blocks_.size() * kBlock * sizeof(Record) + blocks_.capacity() * sizeof(blocks_[0]) + calibrations_.capacity() * sizeof(calibrations_[0]) +
+  return blocks_.size() * kBlock * sizeof(Record) + blocks_.capacity() * sizeof(blocks_[0]) +
+         calibrations_.capacity() * sizeof(calibrations_[0]) +
          corrections_.capacity() * sizeof(corrections_[0]);
 }
 

@@ -1,6 +1,7 @@
 // The index of a solver's parameter blocks by their data pointer: an open-addressing hash table (linear probing) in
-// one array, kept between problems. A solve registers a few hundred blocks and looks each residual's blocks up; a
-// node-based std::unordered_map paid one heap allocation per block (8 % of the process's calls to malloc).
+// one array, which doubles as blocks are added (clear() keeps it for a next problem). A solve registers a few hundred
+// blocks and looks each residual's blocks up; a node-based std::unordered_map paid one heap allocation per block (8 %
+// of the process's calls to malloc).
 #pragma once
 
 #include <cstddef>

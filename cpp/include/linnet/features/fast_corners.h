@@ -16,9 +16,10 @@
 
 namespace linnet {
 
-/// FAST 9-16 corners of an 8-bit single-channel image with non-maximum suppression, at `threshold` (0..255). `simd`: the AVX2 kernel where the CPU has it (else, and for images narrower than 38
-/// pixels, cv::FAST itself, whose results these are). An empty image has none. Throws UsageError for another image
-/// type or a threshold outside 0..255.
+/// FAST 9-16 corners of an 8-bit single-channel image with non-maximum suppression, at `threshold` (0..255).
+/// `simd`: the AVX2 kernel where the CPU has it (else, and for images narrower than 38 pixels or shorter than 7,
+/// cv::FAST itself, whose results these are). An empty image has none. Throws UsageError for another image type or a
+/// threshold outside 0..255.
 void fastCorners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>* keypoints, bool simd = true);
 
 }  // namespace linnet

@@ -1,8 +1,8 @@
 // The System's per-frame results for the whole run (System::trajectory), kept compactly.
 //
 // A run keeps one result per frame for as long as it lasts, so on a long flight (or a live run) this is one of the
-// few things that grow with time. A FrameResult is 528 bytes; the log keeps 224 per frame (in blocks of 256) and gives the same
-// FrameResult back:
+// few things that grow with time. A FrameResult is 528 bytes; the log keeps 224 per frame (in blocks of 256) and
+// gives the same FrameResult back:
 // - the odometry state (time, pose, velocity, biases, status, counts) as it is, in double precision;
 // - the timing and memory diagnostics in single precision (milliseconds and megabytes: 7 significant digits);
 // - the calibration (T_B_R, S_C1, time offset) and the loop correction applied to the System's pose only where they
