@@ -9,7 +9,6 @@
 #include <sstream>
 
 #include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
 
 #include "linnet/core/error.h"
 #include "linnet/core/options.h"
