@@ -98,9 +98,10 @@ int main(int argc, char** argv) {
     if (r.time_offset_estimated)
       std::printf("camera-to-IMU time offset estimated online: %.3f ms (camera stamp - capture time)\n",
                   1e3 * r.time_offset_s);
-    if (!r.map_lines.empty())
-      std::printf("line map: %zu lines; %ld new tracks re-identified as window lines\n", r.map_lines.size(),
-                  r.reidentified_lines);
+    if (r.line_curation.input > 0)
+      std::printf("line map: %zu lines published of %zu (estimator.lines.map.max_sigma_m); %ld new tracks "
+                  "re-identified as window lines\n",
+                  r.map_lines.size(), r.line_curation.input, r.reidentified_lines);
     if (r.loop_enabled) {
       double largest = 0.0;
       for (const linnet::LoopEvent& e : r.loops) largest = std::max(largest, e.correction_m);

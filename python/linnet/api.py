@@ -159,6 +159,7 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
         "image_load_cpu_s": run.image_load_cpu_s,
         "imu_samples": run.imu_samples,
         "map_lines": run.map_line_count,
+        "map_line_candidates": run.map_line_candidates,
         "reidentified_lines": run.reidentified_lines,
     }
     if run.time_offset_estimated:

@@ -191,6 +191,7 @@ RunSummary StreamRun::finish() {
   SystemMap map = system_->map();
   summary.map_points = std::move(map.points);
   summary.map_lines = std::move(map.lines);
+  summary.line_curation = map.line_curation;
   for (const FrameResult& r : summary.results) summary.reidentified_lines += r.estimate.reidentified_lines;
   summary.dropped_frames = system_->droppedFrames();
   summary.loop_enabled = config_.loop.enabled && config_.stereo;

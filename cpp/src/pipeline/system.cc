@@ -15,6 +15,7 @@
 
 #include "linnet/core/cpu_clock.h"
 #include "linnet/core/error.h"
+#include "linnet/estimator/line_map_curation.h"
 #include "linnet/features/line_tracker.h"
 #include "linnet/features/point_tracker.h"
 #include "linnet/pipeline/bounded_queue.h"
@@ -465,7 +466,7 @@ std::vector<FrameResult> System::trajectory() const {
 SystemMap System::map() const {
   // The estimator is only touched from its own thread while running; read it once the stream has finished.
   if (!impl_->finished) return {};
-  SystemMap map{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines()};
+  SystemMap map{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines(), {}};
   if (impl_->loop) {
     const Pose C = impl_->loop->latestCorrection();
     for (Vec3& p : map.points) p = C * p;
@@ -475,6 +476,8 @@ SystemMap System::map() const {
       l.b = Cl * l.b;
     }
   }
+  // The published line map (in the corrected world, where the passes over one line meet): line_map_curation.h.
+  map.lines = curateLineMap(map.lines, config_.estimator.lines.map, &map.line_curation);
   return map;
 }
 

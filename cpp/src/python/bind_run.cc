@@ -38,7 +38,11 @@ void bindRun(py::module_& m) {
       .def_readonly("last_imu_t_ns", &RunSummary::last_imu_t)
       .def_readonly("imu_samples", &RunSummary::imu_samples)
       .def_property_readonly(
-          "map_line_count", [](const RunSummary& r) { return r.map_lines.size(); }, "lines in the run's line map")
+          "map_line_count", [](const RunSummary& r) { return r.map_lines.size(); },
+          "lines in the run's published line map")
+      .def_property_readonly(
+          "map_line_candidates", [](const RunSummary& r) { return r.line_curation.input; },
+          "lines the estimator's map held before curation (estimator.lines.map)")
       .def_readonly("reidentified_lines", &RunSummary::reidentified_lines,
                     "new line tracks found to continue a window line (estimator.lines.reidentify)")
       .def_readonly("stereo", &RunSummary::stereo)

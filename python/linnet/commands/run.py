@@ -187,8 +187,9 @@ def _print_summary(summary: dict, out: Path) -> None:
     if "stereo_correction" in summary:
         c = summary["stereo_correction"]
         rows.append(("cam1 correction (online)", f"{c['rotation_deg']:.4f} deg, {1e3 * c['translation_m']:.3f} mm"))
-    if summary.get("map_lines"):
-        rows.append(("line map", f"{summary['map_lines']} lines; {summary['reidentified_lines']} new tracks "
+    if summary.get("map_line_candidates"):
+        rows.append(("line map", f"{summary['map_lines']} lines published of {summary['map_line_candidates']} "
+                                 f"(estimator.lines.map); {summary['reidentified_lines']} new tracks "
                                  "re-identified as window lines"))
     if "loop_closure" in summary:
         lc = summary["loop_closure"]

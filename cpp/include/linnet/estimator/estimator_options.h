@@ -5,6 +5,7 @@
 #include <string>
 
 #include "linnet/core/options.h"
+#include "linnet/estimator/line_map_curation.h"
 #include "linnet/imu/gravity_alignment.h"
 
 namespace linnet {
@@ -219,6 +220,7 @@ struct LineOptions {
   int weighting_min_lines = 30;       // more lines than this in a frame: the fixed weights below
   double point_weight = 0.2;          // patent: w_p, w_l (line-dominant in low texture); otherwise the weights
   double line_weight = 0.8;           // follow the counts (n_p, n_l) / (n_p + n_l). Costs are scaled by 2 w
+  LineMapOptions map;                 // the published line map: its well-constrained lines (line_map_curation.h)
 
   template <class V>
   void visit(V& v) {
@@ -251,6 +253,7 @@ struct LineOptions {
     v("weighting_min_lines", weighting_min_lines, "lines in a frame above which the fixed weights apply", 0, 100000);
     v("point_weight", point_weight, "point weight w_p with many lines", 0.0, 1.0);
     v("line_weight", line_weight, "line weight w_l with many lines", 0.0, 1.0);
+    v.section("map", map);
   }
 };
 

@@ -53,7 +53,8 @@ struct RunSummary {
   std::vector<std::string> warnings;      // accepted but worth knowing (the dataset's, and the runner's)
   std::vector<FrameResult> results;
   std::vector<Vec3> map_points;
-  std::vector<MapLine> map_lines;
+  std::vector<MapLine> map_lines;     // the published line map (SystemMap::lines)
+  LineMapCurationStats line_curation; // the line map before curation, and what it left out
   long reidentified_lines = 0;  // new line tracks found to continue a window line (estimator.lines.reidentify)
 };
 

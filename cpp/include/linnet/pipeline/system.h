@@ -22,16 +22,19 @@
 #include <opencv2/core.hpp>
 
 #include "linnet/estimator/estimator.h"
+#include "linnet/estimator/line_map_curation.h"
 #include "linnet/loop/loop_closer.h"
 #include "linnet/pipeline/config.h"
 
 namespace linnet {
 
 /// The 3D map: the window's point landmarks and the line map (lines that left the window stay), in W (loop-corrected
-/// when loop closure is on: each line by the correction at its last observation).
+/// when loop closure is on: each line by the correction at its last observation). The lines are the published ones:
+/// those within estimator.lines.map's sigma bound (line_map_curation.h).
 struct SystemMap {
   std::vector<Vec3> points;
   std::vector<MapLine> lines;
+  LineMapCurationStats line_curation;  // how many lines the map held, and why some are not published
 };
 
 /// Everything the System reports for one processed frame.
