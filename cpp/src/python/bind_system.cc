@@ -206,7 +206,7 @@ void bindSystem(py::module_& m) {
              const SystemMap map = s.system().map();
              return mapToDict(map.points, map.lines);
            }, "dict: points (N x 3), lines (M x 2 x 3 segment endpoints), line_ids (M), line_observations (M); W, "
-              "metres; empty until finish()")
+              "metres; the published lines (estimator.lines.map.max_sigma_m); empty until finish()")
       .def_property_readonly("dropped_frames", [](PySystem& s) { return s.system().droppedFrames(); });
 }
 
