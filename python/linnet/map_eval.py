@@ -17,8 +17,8 @@ Metrics (``score_line_map``), for every evaluated map line with endpoints p0, p1
   * angle: the angle between the direction of the map segment and that of segment j, in degrees, in [0, 90] (the
     sign of a direction is irrelevant);
   * endpoint distances: the distances of p0 and p1 to the infinite line through segment j, metres.
-Summary: the median angle, the median and 90th percentile of all 2 N endpoint distances, and the fraction of map lines
-whose two endpoint distances are both <= ``within_m``.
+Summary: the median angle, the median and 90th percentile of all 2 N endpoint distances, the fraction of map lines
+whose two endpoint distances are both <= ``within_m``, and the coverage: how many true segments have such a map line.
 """
 from __future__ import annotations
 
@@ -179,6 +179,8 @@ class LineMapScore:
     true_lines_total: int
     count: int = 0
     true_lines_associated: int = 0  # distinct true segments some map line is associated with
+    true_lines_mapped: int = 0  # distinct true segments with an associated map line whose two endpoint distances
+    # are both <= within_m (the map's coverage: how many physical lines it holds a good line of)
     median_angle_deg: float = math.nan
     median_endpoint_dist_m: float = math.nan  # over all 2 N endpoint distances
     p90_endpoint_dist_m: float = math.nan  # 90th percentile (linear interpolation) of all 2 N endpoint distances
@@ -193,6 +195,7 @@ class LineMapScore:
             "count": self.count,
             "true_lines_total": self.true_lines_total,
             "true_lines_associated": self.true_lines_associated,
+            "true_lines_mapped": self.true_lines_mapped,
             "median_angle_deg": number(self.median_angle_deg),
             "median_endpoint_dist_m": number(self.median_endpoint_dist_m),
             "p90_endpoint_dist_m": number(self.p90_endpoint_dist_m),
@@ -294,6 +297,7 @@ def score_line_map(segments_W, true_segments, T_gt_W: Optional[np.ndarray] = Non
     perp = w - along[..., None] * u[:, None, :]
     dist = np.linalg.norm(perp, axis=2)  # (N, 2): endpoint distances to the infinite true line
     all_dist = dist.ravel()
+    good = np.all(dist <= within_m, axis=1)
     return LineMapScore(
         true_index=idx,
         association_dist_m=assoc,
@@ -304,10 +308,11 @@ def score_line_map(segments_W, true_segments, T_gt_W: Optional[np.ndarray] = Non
         true_lines_total=int(truth.shape[0]),
         count=int(n),
         true_lines_associated=int(np.unique(idx).size),
+        true_lines_mapped=int(np.unique(idx[good]).size),
         median_angle_deg=float(np.median(angle)),
         median_endpoint_dist_m=float(np.median(all_dist)),
         p90_endpoint_dist_m=float(np.percentile(all_dist, 90.0)),
-        frac_within=float(np.mean(np.all(dist <= within_m, axis=1))),
+        frac_within=float(np.mean(good)),
     )
 
 

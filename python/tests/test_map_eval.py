@@ -93,6 +93,17 @@ def test_score_recovers_association_angles_and_distances():
     assert score.frac_within == pytest.approx(3 / 5)  # 0, 0.017 and 0.03 m
     assert map_eval.score_line_map(MAP_W, TRUE, T_GT_W, within_m=0.02).frac_within == pytest.approx(2 / 5)
     assert map_eval.score_line_map(MAP_W, TRUE, T_GT_W, within_m=0.3).frac_within == pytest.approx(1.0)
+    # coverage: the true lines with a map line within the bound
+    assert score.true_lines_mapped == 3 and score.summary()["true_lines_mapped"] == 3
+    assert map_eval.score_line_map(MAP_W, TRUE, T_GT_W, within_m=0.02).true_lines_mapped == 2
+    assert map_eval.score_line_map(MAP_W, TRUE, T_GT_W, within_m=0.3).true_lines_mapped == 5
+
+
+def test_coverage_counts_each_true_line_once():
+    # a second, exact copy of every map line: twice the lines, the same true lines mapped
+    score = map_eval.score_line_map(np.concatenate([MAP_G, MAP_G]), TRUE)
+    assert score.count == 10 and score.true_lines_associated == 5 and score.true_lines_mapped == 3
+    assert score.frac_within == pytest.approx(3 / 5)
 
 
 def test_without_transform_the_frames_coincide():

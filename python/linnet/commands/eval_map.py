@@ -25,6 +25,8 @@ def _print_table(report: dict) -> None:
     table.add_row(f"map lines evaluated (>= {report['min_observations']} observations{gate})",
                   str(report["lines_evaluated"]))
     table.add_row("true lines associated", f"{report['true_lines_associated']} of {report['true_lines_total']}")
+    table.add_row(f"true lines with a map line within {report['within_m']:g} m",
+                  f"{report['true_lines_mapped']} of {report['true_lines_total']}")
     table.add_row("median angle [deg]", _fmt(report["median_angle_deg"], ".3f"))
     table.add_row("median endpoint distance [m]", _fmt(report["median_endpoint_dist_m"], ".4f"))
     table.add_row("90th percentile endpoint distance [m]", _fmt(report["p90_endpoint_dist_m"], ".4f"))
