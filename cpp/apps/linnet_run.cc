@@ -98,6 +98,10 @@ int main(int argc, char** argv) {
     if (r.time_offset_estimated)
       std::printf("camera-to-IMU time offset estimated online: %.3f ms (camera stamp - capture time)\n",
                   1e3 * r.time_offset_s);
+    if (r.line_adjustment.lines > 0)
+      std::printf("line map adjustment: %zu of %zu lines joined into %zu, pose graph %s, CPU %.2f s\n",
+                  r.line_adjustment.joined, r.line_adjustment.lines, r.line_adjustment.groups,
+                  r.line_adjustment.solved ? "solved" : "not solved", r.line_adjustment.cpu_s);
     if (r.line_curation.input > 0)
       std::printf("line map: %zu lines published of %zu (estimator.lines.map.max_sigma_m); %ld new tracks "
                   "re-identified as window lines\n",

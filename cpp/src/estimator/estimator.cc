@@ -40,6 +40,9 @@ void Estimator::addImu(const ImuSample& s) { core_->addImu(s); }
 EstimatorOutput Estimator::addFrame(const FrameObservations& obs) { return core_->addFrame(obs); }
 std::vector<Vec3> Estimator::landmarkPositions() const { return core_->landmarkPositions(); }
 std::vector<MapLine> Estimator::mapLines() const { return core_->mapLines(); }
+std::map<std::int64_t, std::vector<LineSighting>> Estimator::mapLineSightings() const {
+  return core_->mapLineSightings();
+}
 std::vector<MapLine> Estimator::windowLines() const { return core_->windowLines(); }
 std::vector<std::pair<Timestamp, Pose>> Estimator::windowPoses() const { return core_->windowPoses(); }
 std::vector<std::pair<std::int64_t, Vec3>> Estimator::pointLandmarks() const { return core_->pointLandmarks(); }

@@ -48,6 +48,7 @@ class EstimatorCore {
   EstimatorOutput addFrame(const FrameObservations& obs);
   std::vector<Vec3> landmarkPositions() const { return points_.positions(window_); }
   std::vector<MapLine> mapLines() const { return lines_.mapLines(&window_); }
+  std::map<std::int64_t, std::vector<LineSighting>> mapLineSightings() const { return lines_.mapSightings(window_); }
   std::vector<MapLine> windowLines() const { return lines_.windowLines(); }
   std::vector<std::pair<Timestamp, Pose>> windowPoses() const {
     std::vector<std::pair<Timestamp, Pose>> out;

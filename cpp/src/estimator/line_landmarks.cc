@@ -209,7 +209,8 @@ void LineLandmarks::archive(LineLandmark& lm) {
   const auto at = std::lower_bound(map_.begin(), map_.end(), lm.id,
                                    [](const StoredMapLine& m, std::int64_t id) { return m.id < id; });
   const StoredMapLine archived = StoredMapLine::of(mapLineOf(lm, lm.left_window));
-  if (options_.reidentify && options_.reid_map) map_sightings_[lm.id] = std::move(lm.left_window);
+  if ((options_.reidentify && options_.reid_map) || options_.map.adjust)
+    map_sightings_[lm.id] = std::move(lm.left_window);
   // Lines leave the window roughly in the order of their ids: the insertion is near the end.
   if (at != map_.end() && at->id == lm.id) {
     *at = archived;
@@ -244,8 +245,8 @@ MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineS
 void LineLandmarks::appendSightings(const WindowFrame& f, const LineFrameObs& o,
                                    std::vector<LineSighting>* out) const {
   const Pose T_W_B = f.T_W_B() * f.capture_shift;
-  out->push_back({T_W_B * T_B_C0_, o.s0, o.e0});
-  if (o.has_right) out->push_back({T_W_B * *T_B_C1_, o.s1, o.e1});
+  out->push_back({T_W_B * T_B_C0_, o.s0, o.e0, f.t});
+  if (o.has_right) out->push_back({T_W_B * *T_B_C1_, o.s1, o.e1, f.t});
 }
 
 void LineLandmarks::removeFrame(const Window& window, FrameId frame) {
@@ -468,6 +469,19 @@ std::vector<MapLine> LineLandmarks::windowLines() const {
     out.push_back(copy);
   }
   std::sort(out.begin(), out.end(), [](const MapLine& x, const MapLine& y) { return x.id < y.id; });
+  return out;
+}
+
+std::map<std::int64_t, std::vector<LineSighting>> LineLandmarks::mapSightings(const Window& window) const {
+  std::map<std::int64_t, std::vector<LineSighting>> out = map_sightings_;
+  if (map_sightings_.empty() && !options_.map.adjust) return out;
+  for (const auto& [id, lm] : landmarks_) {
+    if (!lm.triangulated || !lm.has_extent) continue;
+    std::vector<LineSighting>& s = out[id];
+    s = lm.left_window;
+    for (const auto& [fid, o] : lm.obs)
+      if (const WindowFrame* f = window.find(fid)) appendSightings(*f, o, &s);
+  }
   return out;
 }
 

@@ -192,6 +192,7 @@ RunSummary StreamRun::finish() {
   summary.map_points = std::move(map.points);
   summary.map_lines = std::move(map.lines);
   summary.line_curation = map.line_curation;
+  summary.line_adjustment = map.line_adjustment;
   for (const FrameResult& r : summary.results) summary.reidentified_lines += r.estimate.reidentified_lines;
   summary.dropped_frames = system_->droppedFrames();
   summary.loop_enabled = config_.loop.enabled && config_.stereo;

@@ -111,6 +111,9 @@ struct System::Impl {
 
   Timestamp last_frame_t = std::numeric_limits<Timestamp>::min();
   bool finished = false;
+  // With estimator.lines.map.adjust: the line map after the global adjustment (corrected world), and its figures.
+  std::optional<std::vector<MapLine>> adjusted_lines;
+  LineAdjustmentStats line_adjustment;
 
   std::unique_ptr<WorkerThread> line_worker;
   std::jthread frontend_thread, estimator_thread;
@@ -449,6 +452,22 @@ void System::finish() {
   rethrowWorkerError();
   if (impl_->loop) {
     impl_->loop->flush();
+    const LineMapOptions& mo = config_.estimator.lines.map;
+    if (mo.adjust) {
+      // The global adjustment of the line map: it moves the keyframes' corrections, so before the recorrection.
+      LineAdjustmentOptions ao;
+      const LineOptions& lo = config_.estimator.lines;
+      ao.focal_px = config_.estimator.solver.focal_length;
+      ao.pixel_sigma = lo.pixel_sigma;
+      ao.join_px = mo.adjust_join_px;
+      ao.publish_joined = mo.adjust_publish_joined;
+      ao.min_depth_m = lo.min_depth_m;
+      ao.max_depth_m = lo.max_depth_m;
+      ao.max_length_m = lo.max_length_m;
+      impl_->adjusted_lines = impl_->loop->adjustLines(impl_->estimator.mapLines(),
+                                                       impl_->estimator.mapLineSightings(), ao,
+                                                       &impl_->line_adjustment);
+    }
     // Every frame with the final correction of its keyframe (the pose graph moved them since the callback).
     std::lock_guard<std::mutex> lock(impl_->result_mutex);
     impl_->results.recorrect([&](Timestamp t) { return impl_->loop->correctionAt(t); });
@@ -466,8 +485,11 @@ std::vector<FrameResult> System::trajectory() const {
 SystemMap System::map() const {
   // The estimator is only touched from its own thread while running; read it once the stream has finished.
   if (!impl_->finished) return {};
-  SystemMap map{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines(), {}};
-  if (impl_->loop) {
+  SystemMap map{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines(), {}, impl_->line_adjustment};
+  if (impl_->adjusted_lines) {
+    map.lines = *impl_->adjusted_lines;
+    for (Vec3& p : map.points) p = impl_->loop->latestCorrection() * p;
+  } else if (impl_->loop) {
     const Pose C = impl_->loop->latestCorrection();
     for (Vec3& p : map.points) p = C * p;
     for (MapLine& l : map.lines) {

@@ -10,6 +10,7 @@
 // the solver's time bound (solver.max_solver_time_s) does not bind.
 #pragma once
 
+#include <map>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -67,6 +68,9 @@ class Estimator {
   std::vector<Vec3> landmarkPositions() const;
   /// The line map: lines that left the window and the window's triangulated lines, finite segments in W.
   std::vector<MapLine> mapLines() const;
+  /// The sightings of mapLines()'s lines by id, at the odometry's poses, when estimator.lines.map.adjust keeps them
+  /// (for the global adjustment of the line map, LoopCloser::adjustLines); empty otherwise.
+  std::map<std::int64_t, std::vector<LineSighting>> mapLineSightings() const;
   /// The window's triangulated lines now (current estimate, finite segments in W), by increasing id.
   std::vector<MapLine> windowLines() const;
   /// The window's frames now (oldest first): time stamp and T_W_B.

@@ -110,6 +110,9 @@ class LineLandmarks {
   /// its lines are refined as the lines that left it are (options.map_refine): on their sightings that left the
   /// window and those still in it, at the window's poses.
   std::vector<MapLine> mapLines(const Window* window = nullptr) const;
+  /// With options.map.adjust (or reid_map): the sightings of mapLines(window)'s lines, by id (the window's lines: those
+  /// that left the window, then the window's at its poses); empty otherwise.
+  std::map<std::int64_t, std::vector<LineSighting>> mapSightings(const Window& window) const;
   /// The window's triangulated lines with an extent, at their current estimate (by increasing id).
   std::vector<MapLine> windowLines() const;
   const std::map<std::int64_t, LineLandmark>& all() const { return landmarks_; }

@@ -20,6 +20,7 @@ namespace linnet {
 struct LineSighting {
   Pose T_W_C;
   Vec2 s = Vec2::Zero(), e = Vec2::Zero();
+  Timestamp t = 0;  // the frame's time, ns (0: unknown)
 };
 
 struct LineRefinementOptions {

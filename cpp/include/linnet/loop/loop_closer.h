@@ -14,6 +14,7 @@
 #pragma once
 
 #include <deque>
+#include <map>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -22,6 +23,7 @@
 #include "linnet/core/frame_observations.h"
 #include "linnet/core/pose.h"
 #include "linnet/core/types.h"
+#include "linnet/loop/line_adjustment.h"
 #include "linnet/loop/loop_options.h"
 #include "linnet/loop/place_matcher.h"
 #include "linnet/loop/place_store.h"
@@ -79,6 +81,13 @@ class LoopCloser {
   /// Inserts every queued keyframe and solves the whole graph if loop edges were added since its last whole solve
   /// (solved in the newest nodes only, or not solved: consistent with the graph) (end of the stream).
   int flush();
+  /// The global adjustment of the line map (line_adjustment.h), after flush(): `lines` in the odometry's world with
+  /// their sightings by id (lines without sightings are only corrected). Solves the pose graph again with the joined
+  /// lines (the corrections, hence correctionAt, change) and returns every line re-estimated at the corrected poses,
+  /// in the corrected world; a joined line keeps its best-constrained member's id.
+  std::vector<MapLine> adjustLines(const std::vector<MapLine>& lines,
+                                   const std::map<std::int64_t, std::vector<LineSighting>>& sightings,
+                                   const LineAdjustmentOptions& options, LineAdjustmentStats* stats = nullptr);
   bool hasQueued() const { return !queued_.empty(); }
 
   /// T_Wcorrected_Wodometry in force at time t: the correction of the last pose-graph node at or before t (identity

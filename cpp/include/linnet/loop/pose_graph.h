@@ -5,6 +5,7 @@
 // to an older keyframe of the same place.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -30,6 +31,26 @@ struct PoseGraphEdge {
   bool loop = false;         // loop edges get a Huber loss
 };
 
+/// A 3D line seen from the graph's nodes (the global adjustment of the line map, LoopCloser::adjustLines): each
+/// sighting's camera is held relative to its node's odometry pose (T_Wo_C, in the odometry's world), so a node's
+/// correction moves its sightings with it.
+struct GraphLine {
+  struct Sighting {
+    std::size_t node = 0;
+    Pose T_Wo_C;
+    Vec2 s = Vec2::Zero(), e = Vec2::Zero();  // the segment's normalised endpoints
+  };
+  std::array<double, 6> L{};  // Plücker coordinates [n; v] in the corrected world (LineManifold updates)
+  std::vector<Sighting> sightings;
+};
+
+/// How GraphLine sightings enter a solve: endpoint-to-line distances (pixels) with a Huber loss.
+struct GraphLineOptions {
+  double focal_px = 460.0;   // pixels per normalised unit
+  double pixel_sigma = 1.5;  // std of an endpoint distance, pixels
+  double huber = 1.0;        // Huber threshold of the whitened distances
+};
+
 struct PoseGraphOptions {
   double loop_huber = 0.0;  // Huber threshold of loop edges, in sigmas (0: no robust loss)
   int max_iterations = 30;
@@ -52,6 +73,9 @@ class PoseGraph {
   /// (the older ones held), starting from the current estimates. Returns false if the solver failed (the estimates
   /// are then unchanged).
   bool optimise(const PoseGraphOptions& options);
+  /// The same with lines: every node but node 0 and the lines are optimised together (the nodes' corrections move
+  /// the lines' sightings). The lines' L are updated in place.
+  bool optimise(const PoseGraphOptions& options, std::vector<GraphLine>* lines, const GraphLineOptions& line_options);
 
   std::size_t size() const { return nodes_.size(); }
   const std::vector<PoseGraphEdge>& edges() const { return edges_; }

@@ -55,6 +55,7 @@ struct RunSummary {
   std::vector<Vec3> map_points;
   std::vector<MapLine> map_lines;     // the published line map (SystemMap::lines)
   LineMapCurationStats line_curation; // the line map before curation, and what it left out
+  LineAdjustmentStats line_adjustment; // the line map's global adjustment (estimator.lines.map.adjust)
   long reidentified_lines = 0;  // new line tracks found to continue a window line (estimator.lines.reidentify)
 };
 

@@ -35,6 +35,7 @@ struct SystemMap {
   std::vector<Vec3> points;
   std::vector<MapLine> lines;
   LineMapCurationStats line_curation;  // how many lines the map held, and why some are not published
+  LineAdjustmentStats line_adjustment; // the global adjustment of the line map (estimator.lines.map.adjust)
 };
 
 /// Everything the System reports for one processed frame.
