@@ -78,7 +78,7 @@ std::vector<MapLine> LoopCloser::adjustLines(const std::vector<MapLine>& lines,
   }
   // Each line with sightings as a group of one, in the corrected world; the others only corrected.
   std::vector<Group> singles;
-  std::vector<const MapLine*> single_lines;
+  std::vector<const MapLine*> single_lines, unseen;
   for (const MapLine& l : lines) {
     const Pose C = l.t_last > 0 ? correctionAt(l.t_last) : latestCorrection();
     MapLine m = l;
@@ -86,7 +86,7 @@ std::vector<MapLine> LoopCloser::adjustLines(const std::vector<MapLine>& lines,
     m.b = C * l.b;
     const auto s = sightings.find(l.id);
     if (s == sightings.end() || s->second.size() < 2) {
-      out.push_back(m);
+      unseen.push_back(&l);  // corrected once the graph is solved
       continue;
     }
     Group g;
@@ -240,6 +240,13 @@ std::vector<MapLine> LoopCloser::adjustLines(const std::vector<MapLine>& lines,
       m.angle_deg = std::max(m.angle_deg, l.angle_deg);
     }
     out.push_back(estimate(m, g.odometry, g.nodes, g.L));
+  }
+  for (const MapLine* l : unseen) {
+    MapLine m = *l;
+    const Pose C = l->t_last > 0 ? correctionAt(l->t_last) : latestCorrection();
+    m.a = C * l->a;
+    m.b = C * l->b;
+    out.push_back(m);
   }
   std::sort(out.begin(), out.end(), [](const MapLine& x, const MapLine& y) { return x.id < y.id; });
   st.cpu_s = 1e-3 * (threadCpuMs() - cpu0);

@@ -31,7 +31,7 @@ struct LineAdjustmentOptions {
   double min_depth_m = 0.1;      // depth range of the back-projected extents, m
   double max_depth_m = 30.0;
   double max_length_m = 20.0;    // longest segment, m
-  bool publish_joined = true;    // a joined group is one map line; false: each map line re-estimated on its own
+  bool publish_joined = false;   // a joined group is one map line; false: each map line re-estimated on its own
                                  // sightings at the adjusted poses
 };
 
