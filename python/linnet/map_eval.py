@@ -185,6 +185,8 @@ class LineMapScore:
     median_endpoint_dist_m: float = math.nan  # over all 2 N endpoint distances
     p90_endpoint_dist_m: float = math.nan  # 90th percentile (linear interpolation) of all 2 N endpoint distances
     frac_within: float = math.nan  # fraction of map lines with both endpoint distances <= within_m
+    median_association_dist_m: float = math.nan  # median of association_dist_m: far above the endpoint distances when
+    # most map lines have no true segment (texture edges of the room and hall scenes, which sim/lines.csv lacks)
 
     def summary(self) -> dict:
         """The summary figures as a JSON-ready dict (NaN -> None)."""
@@ -201,6 +203,7 @@ class LineMapScore:
             "p90_endpoint_dist_m": number(self.p90_endpoint_dist_m),
             "within_m": self.within_m,
             "frac_within": number(self.frac_within),
+            "median_association_dist_m": number(self.median_association_dist_m),
         }
 
 
@@ -313,6 +316,7 @@ def score_line_map(segments_W, true_segments, T_gt_W: Optional[np.ndarray] = Non
         median_endpoint_dist_m=float(np.median(all_dist)),
         p90_endpoint_dist_m=float(np.percentile(all_dist, 90.0)),
         frac_within=float(np.mean(good)),
+        median_association_dist_m=float(np.median(assoc)),
     )
 
 

@@ -99,6 +99,15 @@ def test_score_recovers_association_angles_and_distances():
     assert map_eval.score_line_map(MAP_W, TRUE, T_GT_W, within_m=0.3).true_lines_mapped == 5
 
 
+def test_median_association_distance():
+    score = map_eval.score_line_map(MAP_W, TRUE, T_GT_W)
+    assert score.median_association_dist_m == pytest.approx(np.median(score.association_dist_m), abs=1e-12)
+    assert score.summary()["median_association_dist_m"] == pytest.approx(score.median_association_dist_m)
+    # map lines 1 m from every true segment
+    far = map_eval.score_line_map(MAP_G + np.array([0.0, 0.0, 1.0]), TRUE)
+    assert far.median_association_dist_m > 0.5
+
+
 def test_coverage_counts_each_true_line_once():
     # a second, exact copy of every map line: twice the lines, the same true lines mapped
     score = map_eval.score_line_map(np.concatenate([MAP_G, MAP_G]), TRUE)
@@ -409,6 +418,21 @@ def test_eval_map_command_prints_the_figures_and_writes_json(run_and_dataset, tm
     assert "both endpoints within 0.02 m" in result.output
     report = json.loads(out.read_text())
     assert report["lines_evaluated"] == 5 and report["min_observations"] == 0 and report["within_m"] == 0.02
+
+
+def test_eval_map_command_notes_a_map_without_true_segments(run_and_dataset):
+    run, dataset = run_and_dataset
+    result = CliRunner().invoke(cli(), ["eval-map", str(run), str(dataset)])
+    assert result.exit_code == 0 and "score the association, not the map" not in result.output
+    # every true segment moved 2 m away (as a scene whose true lines miss the mapped edges)
+    lines = dataset / "sim" / "lines.csv"
+    rows = lines.read_text(encoding="utf-8").splitlines()
+    moved = [rows[0]] + [",".join([r.split(",")[0]] + [str(float(v) + 2.0) for v in r.split(",")[1:7]] +
+                                  r.split(",")[7:]) for r in rows[1:] if r and not r.startswith("#")]
+    lines.write_text("\n".join(moved) + "\n", encoding="utf-8")
+    result = CliRunner().invoke(cli(), ["eval-map", str(run), str(dataset)])
+    assert result.exit_code == 0, result.output
+    assert "score the association, not the map" in " ".join(result.output.split())
 
 
 def test_eval_map_command_errors_are_one_line(run_and_dataset):
