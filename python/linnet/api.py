@@ -162,6 +162,8 @@ def summarize(run: "_linnet.RunSummary", dataset: Optional[PathLike]) -> dict:
         "map_line_candidates": run.map_line_candidates,
         "reidentified_lines": run.reidentified_lines,
     }
+    if run.line_adjustment is not None:
+        summary["line_adjustment"] = dict(run.line_adjustment)
     if run.time_offset_estimated:
         summary["time_offset_ms"] = 1e3 * run.time_offset_s
     if run.extrinsics_estimated:

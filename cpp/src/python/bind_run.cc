@@ -43,6 +43,21 @@ void bindRun(py::module_& m) {
       .def_property_readonly(
           "map_line_candidates", [](const RunSummary& r) { return r.line_curation.input; },
           "lines the estimator's map held before curation (estimator.lines.map)")
+      .def_property_readonly(
+          "line_adjustment",
+          [](const RunSummary& r) -> py::object {
+            const LineAdjustmentStats& a = r.line_adjustment;
+            if (a.lines == 0) return py::none();
+            py::dict d;
+            d["lines"] = a.lines;
+            d["joined"] = a.joined;
+            d["groups"] = a.groups;
+            d["solved"] = a.solved;
+            d["cpu_s"] = a.cpu_s;
+            return d;
+          },
+          "the line map's global adjustment (estimator.lines.map.adjust): lines, joined, groups, solved, cpu_s; "
+          "None when it did not run")
       .def_readonly("reidentified_lines", &RunSummary::reidentified_lines,
                     "new line tracks found to continue a window line (estimator.lines.reidentify)")
       .def_readonly("stereo", &RunSummary::stereo)

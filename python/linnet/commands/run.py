@@ -191,6 +191,11 @@ def _print_summary(summary: dict, out: Path) -> None:
         rows.append(("line map", f"{summary['map_lines']} lines published of {summary['map_line_candidates']} "
                                  f"(estimator.lines.map); {summary['reidentified_lines']} new tracks "
                                  "re-identified as window lines"))
+    if "line_adjustment" in summary:
+        a = summary["line_adjustment"]
+        solved = "solved" if a["solved"] else "not solved"
+        rows.append(("line map adjustment", f"{a['joined']} of {a['lines']} lines joined into {a['groups']}, "
+                                            f"pose graph {solved}, CPU {a['cpu_s']:.2f} s"))
     if "loop_closure" in summary:
         lc = summary["loop_closure"]
         rows.append(("loop closure", f"{lc['loops']} loops, largest correction {lc['largest_correction_m']:.3f} m; "
