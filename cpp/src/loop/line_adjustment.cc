@@ -12,7 +12,10 @@ namespace linnet {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// The solve's cost grows with the square of the keyframes a line couples: each joined line keeps at most this many
+// (V1_02 lowtex, before the iterative Schur solver: the solve 2.3 -> 1.6 s, APE 0.0067 -> 0.0062 m).
 constexpr std::size_t kMaxNodesPerLine = 24;
+// A join is verified on at most this many sightings of each side (the joins 1.15 -> 0.22 s on V2_02 lowtex).
 constexpr std::size_t kJoinSightings = 32;
 
 /// A group of map lines taken for one physical line: its members (indices), its current line in the corrected world
