@@ -49,18 +49,7 @@ bool LineLandmarks::backProject(const Vec6& L, const Pose& T_W_C, const Vec2& s,
 }
 
 void LineLandmarks::extend(LineLandmark& lm, const Vec3& a, const Vec3& b) const {
-  const Vec6 L = lm.L();
-  const Vec3 u = pluckerDirection(L), P0 = pluckerClosestPointToOrigin(L);
-  double lo = (a - P0).dot(u), hi = (b - P0).dot(u);
-  if (lo > hi) std::swap(lo, hi);
-  if (lm.has_extent) {
-    const double ta = (lm.a - P0).dot(u), tb = (lm.b - P0).dot(u);
-    lo = std::min({lo, ta, tb});
-    hi = std::max({hi, ta, tb});
-  }
-  lm.a = P0 + lo * u;
-  lm.b = P0 + hi * u;
-  lm.has_extent = true;
+  extendOnLine(lm.L(), a, b, &lm.has_extent, &lm.a, &lm.b);
 }
 
 bool LineLandmarks::triangulateOne(const Window& window, LineLandmark& lm) const {
@@ -227,15 +216,11 @@ MapLine LineLandmarks::mapLineOf(const LineLandmark& lm, const std::vector<LineS
   ro.huber_px = options_.huber_px * options_.pixel_sigma;
   if (options_.map_refine && refineLine(sightings, ro, &L)) {
     // The extent again, on the refined line: the extreme back-projected endpoints of all its sightings.
-    LineLandmark refined;
-    refined.setL(L);
-    for (const LineSighting& o : sightings) {
-      Vec3 a, b;
-      if (backProject(L, o.T_W_C, o.s, o.e, &a, &b)) extend(refined, a, b);
-    }
-    if (refined.has_extent && (refined.b - refined.a).norm() <= options_.max_length_m) {
-      m.a = refined.a;
-      m.b = refined.b;
+    Vec3 a, b;
+    if (extentOnSightings(L, sightings, options_.min_depth_m, options_.max_depth_m, &a, &b) &&
+        (b - a).norm() <= options_.max_length_m) {
+      m.a = a;
+      m.b = b;
     }
   }
   m.sigma_m = lineEndpointSigmaM(L, sightings, m.a, m.b, focal_length_, options_.pixel_sigma);

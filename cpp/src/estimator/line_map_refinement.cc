@@ -1,6 +1,7 @@
 // One line on all its sightings, poses fixed (see line_map_refinement.h).
 #include "linnet/estimator/line_map_refinement.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -35,6 +36,31 @@ bool backProjectSegment(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const
     *out[k] = p->on_line;
   }
   return true;
+}
+
+void extendOnLine(const Vec6& L, const Vec3& a, const Vec3& b, bool* has_extent, Vec3* ext_a, Vec3* ext_b) {
+  const Vec3 u = pluckerDirection(L), P0 = pluckerClosestPointToOrigin(L);
+  double lo = (a - P0).dot(u), hi = (b - P0).dot(u);
+  if (lo > hi) std::swap(lo, hi);
+  if (*has_extent) {
+    const double ta = (*ext_a - P0).dot(u), tb = (*ext_b - P0).dot(u);
+    lo = std::min({lo, ta, tb});
+    hi = std::max({hi, ta, tb});
+  }
+  *ext_a = P0 + lo * u;
+  *ext_b = P0 + hi * u;
+  *has_extent = true;
+}
+
+bool extentOnSightings(const Vec6& L, const std::vector<LineSighting>& sightings, double min_depth_m,
+                       double max_depth_m, Vec3* a, Vec3* b) {
+  bool has_extent = false;
+  for (const LineSighting& o : sightings) {
+    Vec3 pa, pb;
+    if (backProjectSegment(L, o.T_W_C, o.s, o.e, min_depth_m, max_depth_m, &pa, &pb))
+      extendOnLine(L, pa, pb, &has_extent, a, b);
+  }
+  return has_extent;
 }
 
 bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinementOptions& options, Vec6* L_W) {

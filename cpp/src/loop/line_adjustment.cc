@@ -83,10 +83,6 @@ std::vector<MapLine> LoopCloser::adjustLines(const std::vector<MapLine>& lines,
   std::vector<Group> singles;
   std::vector<const MapLine*> single_lines, unseen;
   for (const MapLine& l : lines) {
-    const Pose C = l.t_last > 0 ? correctionAt(l.t_last) : latestCorrection();
-    MapLine m = l;
-    m.a = C * l.a;
-    m.b = C * l.b;
     const auto s = sightings.find(l.id);
     if (s == sightings.end() || s->second.size() < 2) {
       unseen.push_back(&l);  // corrected once the graph is solved
@@ -94,6 +90,7 @@ std::vector<MapLine> LoopCloser::adjustLines(const std::vector<MapLine>& lines,
     }
     Group g;
     g.members = {single_lines.size()};
+    const MapLine m = correctedLine(l);
     g.a = m.a;
     g.b = m.b;
     g.L = normalisePlucker(pluckerFromPoints(m.a, m.b));
@@ -194,27 +191,12 @@ std::vector<MapLine> LoopCloser::adjustLines(const std::vector<MapLine>& lines,
     for (std::size_t q = 0; q < corrected.size(); ++q)
       corrected[q].T_W_C = graph_.correction(nodes[q]) * odometry[q].T_W_C;
     refineLine(corrected, ro, &L);
-    Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-    double t0 = INFINITY, t1 = -INFINITY;
-    const Vec3 d = pluckerDirection(L), p0 = pluckerClosestPointToOrigin(L);
-    for (const LineSighting& o : corrected) {
-      Vec3 a, b;
-      if (!backProjectSegment(L, o.T_W_C, o.s, o.e, options.min_depth_m, options.max_depth_m, &a, &b)) continue;
-      for (const Vec3& x : {a, b}) {
-        const double t = d.dot(x - p0);
-        if (t < t0) t0 = t, lo = x;
-        if (t > t1) t1 = t, hi = x;
-      }
-    }
-    if (!(t1 > t0) || (hi - lo).norm() > options.max_length_m) {
-      // No extent at the corrected poses: the line as it was, moved by its correction.
-      const Pose C = m.t_last > 0 ? correctionAt(m.t_last) : latestCorrection();
-      m.a = C * m.a;
-      m.b = C * m.b;
-      return m;
-    }
-    m.a = lo;
-    m.b = hi;
+    Vec3 a, b;
+    if (!extentOnSightings(L, corrected, options.min_depth_m, options.max_depth_m, &a, &b) || !((b - a).norm() > 0.0) ||
+        (b - a).norm() > options.max_length_m)
+      return correctedLine(m);  // no extent at the corrected poses: the line as it was, moved by its correction
+    m.a = a;
+    m.b = b;
     m.sigma_m = lineEndpointSigmaM(L, corrected, m.a, m.b, options.focal_px, options.pixel_sigma);
     return m;
   };
@@ -244,13 +226,7 @@ std::vector<MapLine> LoopCloser::adjustLines(const std::vector<MapLine>& lines,
     }
     out.push_back(estimate(m, g.odometry, g.nodes, g.L));
   }
-  for (const MapLine* l : unseen) {
-    MapLine m = *l;
-    const Pose C = l->t_last > 0 ? correctionAt(l->t_last) : latestCorrection();
-    m.a = C * l->a;
-    m.b = C * l->b;
-    out.push_back(m);
-  }
+  for (const MapLine* l : unseen) out.push_back(correctedLine(*l));
   std::sort(out.begin(), out.end(), [](const MapLine& x, const MapLine& y) { return x.id < y.id; });
   st.cpu_s = 1e-3 * (threadCpuMs() - cpu0);
   if (stats) *stats = st;

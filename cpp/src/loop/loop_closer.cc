@@ -283,4 +283,11 @@ Pose LoopCloser::latestCorrection() const {
   return graph_.correction(keyframes_.size() - 1);
 }
 
+MapLine LoopCloser::correctedLine(MapLine line) const {
+  const Pose C = line.t_last > 0 ? correctionAt(line.t_last) : latestCorrection();
+  line.a = C * line.a;
+  line.b = C * line.b;
+  return line;
+}
+
 }  // namespace linnet

@@ -485,18 +485,17 @@ std::vector<FrameResult> System::trajectory() const {
 SystemMap System::map() const {
   // The estimator is only touched from its own thread while running; read it once the stream has finished.
   if (!impl_->finished) return {};
-  SystemMap map{impl_->estimator.landmarkPositions(), impl_->estimator.mapLines(), {}, impl_->line_adjustment};
+  SystemMap map{impl_->estimator.landmarkPositions(), {}, {}, impl_->line_adjustment};
   if (impl_->adjusted_lines) {
-    map.lines = *impl_->adjusted_lines;
-    for (Vec3& p : map.points) p = impl_->loop->latestCorrection() * p;
-  } else if (impl_->loop) {
+    map.lines = *impl_->adjusted_lines;  // already in the corrected world
+  } else {
+    map.lines = impl_->estimator.mapLines();
+    if (impl_->loop)
+      for (MapLine& l : map.lines) l = impl_->loop->correctedLine(l);
+  }
+  if (impl_->loop) {
     const Pose C = impl_->loop->latestCorrection();
     for (Vec3& p : map.points) p = C * p;
-    for (MapLine& l : map.lines) {
-      const Pose Cl = l.t_last > 0 ? impl_->loop->correctionAt(l.t_last) : C;
-      l.a = Cl * l.a;
-      l.b = Cl * l.b;
-    }
   }
   // The published line map (in the corrected world, where the passes over one line meet): line_map_curation.h.
   map.lines = curateLineMap(map.lines, config_.estimator.lines.map, &map.line_curation);

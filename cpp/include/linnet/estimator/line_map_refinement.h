@@ -37,6 +37,15 @@ double meanSightingErrorPx(const Vec6& L_W, const std::vector<LineSighting>& sig
 bool backProjectSegment(const Vec6& L_W, const Pose& T_W_C, const Vec2& s, const Vec2& e, double min_depth_m,
                         double max_depth_m, Vec3* a, Vec3* b);
 
+/// Extends the segment *ext_a-*ext_b on line L by the segment a-b on L (which is the first one if !*has_extent): the
+/// two extreme points along L.
+void extendOnLine(const Vec6& L, const Vec3& a, const Vec3& b, bool* has_extent, Vec3* ext_a, Vec3* ext_b);
+
+/// The extent of L over its sightings: the extreme points along L of their back-projected segments (backProjectSegment
+/// within [min_depth_m, max_depth_m]); false if none back-projects.
+bool extentOnSightings(const Vec6& L, const std::vector<LineSighting>& sightings, double min_depth_m,
+                       double max_depth_m, Vec3* a, Vec3* b);
+
 /// Minimises the robustified endpoint distances of the sightings over the line (Plücker L_W, LineManifold update),
 /// starting from *L_W. Writes the result and returns true only if it lowers the mean endpoint distance.
 bool refineLine(const std::vector<LineSighting>& sightings, const LineRefinementOptions& options, Vec6* L_W);

@@ -25,6 +25,7 @@ struct LineAdjustmentOptions {
   double focal_px = 460.0;       // pixels per normalised unit
   double pixel_sigma = 1.5;      // std of an endpoint distance, pixels
   double join_px = 2.0;          // two map lines join if one line fits each one's sightings within this mean, pixels
+                                 // (the System passes estimator.lines.map.adjust_join_px, 1 px)
   double join_angle_deg = 2.0;   // join candidates: directions within this angle, deg
   double join_distance_m = 0.1;  // and both endpoints of one within this of the other's line, m
   double join_gap_m = 0.3;       // and their extents at most this far apart along it, m
@@ -41,14 +42,6 @@ struct LineAdjustmentStats {
   std::size_t groups = 0;     // joined lines: the physical lines they make
   bool solved = false;        // the pose-graph solve with lines succeeded
   double cpu_s = 0.0;         // the adjustment's CPU time, s
-};
-
-/// One map line with its sightings for the adjustment: its segment in the corrected world, and for each sighting the
-/// pose-graph node whose correction moves it.
-struct AdjustableLine {
-  MapLine line;                           // in the corrected world
-  std::vector<LineSighting> sightings;    // at the odometry's poses (T_W_C in the odometry's world)
-  std::vector<std::size_t> nodes;         // per sighting: its node
 };
 
 }  // namespace linnet

@@ -95,6 +95,9 @@ class LoopCloser {
   Pose correctionAt(Timestamp t) const;
   /// The correction of the newest pose-graph node (a culled revisit after it would have had the same).
   Pose latestCorrection() const;
+  /// A map line of the odometry's world in the corrected one: moved by the correction at its last sighting
+  /// (correctionAt(t_last); the latest correction if t_last is unknown).
+  MapLine correctedLine(MapLine line) const;
 
   const std::vector<LoopEvent>& loops() const { return loops_; }
   /// Keyframes inserted so far.
